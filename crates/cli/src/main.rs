@@ -1,0 +1,419 @@
+//! `fogline`: the safety of driving planners when their perception degrades.
+//!
+//! A thin binary over the library crates: it parses flags, reads and writes files, logs on
+//! stderr and prints its primary output on stdout. Exit codes: 0 success, 1 a gate failed
+//! (e.g. a scenario rejected under `--pi-star`), 2 error (the whole error chain is printed).
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use fogline_envelope::{Bands, Envelope, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule};
+
+#[derive(Parser)]
+#[command(
+    name = "fogline",
+    version,
+    about = "When does a camera-driven planner start to fail, how severely, and what should the car do meanwhile",
+    after_help = "Examples:\n  fogline demo\n  fogline envelope pairs.csv --out envelope/\n  fogline envelope pairs.parquet --out envelope/ --pi-star 0.08 --budgets 0.10,0.15,0.20"
+)]
+struct Cli {
+    /// More log output on stderr (-v debug, -vv trace).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    /// Only warnings and errors on stderr.
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Analyse a pairs table: per-scenario thresholds, severity bands, the 2-D ODD entry.
+    #[command(after_help = "Examples:\n  fogline envelope pairs.csv --out envelope/\n  fogline envelope pairs.jsonl --out out/ --rule max-passing --bootstrap 2000 --seed 7")]
+    Envelope(EnvelopeArgs),
+    /// Run the whole pipeline offline on built-in data and write a report.
+    #[command(after_help = "Example:\n  fogline demo --out fogline-demo")]
+    Demo(DemoArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum RuleArg {
+    FirstViolation,
+    MaxPassing,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum TaxonomyArg {
+    /// The paper's seven classes + OTHER when the data uses them, else the data's labels.
+    Auto,
+    /// The paper's seven classes + OTHER.
+    Paper,
+    /// The labels found in the data (OTHER excluded).
+    Data,
+}
+
+#[derive(Args)]
+struct AnalysisArgs {
+    /// ADE budgets (relative), comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0.10,0.15,0.20")]
+    budgets: Vec<f64>,
+    /// The headline budget (must be one of --budgets).
+    #[arg(long, default_value_t = 0.15)]
+    headline: f64,
+    /// Threshold rule.
+    #[arg(long, value_enum, default_value = "first-violation")]
+    rule: RuleArg,
+    /// Clip-level bootstrap resamples (0 = off).
+    #[arg(long, default_value_t = 10_000)]
+    bootstrap: usize,
+    /// Seed of every random draw.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Largest number of mixture components.
+    #[arg(long, default_value_t = 8)]
+    k_max: usize,
+    /// Restart seeds of the BIC study.
+    #[arg(long, default_value_t = 20)]
+    restarts: usize,
+    /// Starts per GMM fit.
+    #[arg(long, default_value_t = 3)]
+    n_init: usize,
+    /// Number of severity bands: `auto` (BIC) or a fixed K.
+    #[arg(long, default_value = "auto")]
+    bands: String,
+    /// How many top bands count as high severity.
+    #[arg(long, default_value_t = 2)]
+    high_bands: usize,
+    /// Residual-risk budget π* on P(high | changed, s); enables acceptance (and the exit-1 gate).
+    #[arg(long)]
+    pi_star: Option<f64>,
+    /// Operating level σ_op for acceptance (default: the all-clips aggregate threshold).
+    #[arg(long)]
+    sigma_op: Option<f64>,
+    /// Scenarios with fewer clips are marked pilot.
+    #[arg(long, default_value_t = 30)]
+    min_clips: usize,
+    /// How L2 was aggregated upstream (recorded in the output).
+    #[arg(long, default_value = "euclidean norm of the stacked xy waypoint differences (m)")]
+    l2: String,
+    /// Family whose threshold forms the ODD entry.
+    #[arg(long, default_value = "gaussian_noise")]
+    odd_family: String,
+    /// Scenario taxonomy.
+    #[arg(long, value_enum, default_value = "auto")]
+    taxonomy: TaxonomyArg,
+    /// TOML file of action keyword rules (`[[action]]` tables with `name` and `keywords`).
+    #[arg(long)]
+    actions: Option<PathBuf>,
+    /// Accept clips that lack some conditions.
+    #[arg(long)]
+    allow_incomplete: bool,
+}
+
+#[derive(Args)]
+struct EnvelopeArgs {
+    /// Pairs table: .csv, .parquet or .jsonl (one row per clip × perturbed condition).
+    pairs: PathBuf,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    analysis: AnalysisArgs,
+}
+
+#[derive(Args)]
+struct DemoArgs {
+    /// Output directory.
+    #[arg(long, default_value = "fogline-demo")]
+    out: PathBuf,
+    /// Clips in the corpus (the paper's corpus has 1,996).
+    #[arg(long, default_value_t = 1996)]
+    clips: usize,
+    /// Seed.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let level = if cli.quiet {
+        log::LevelFilter::Warn
+    } else {
+        match cli.verbose {
+            0 => log::LevelFilter::Info,
+            1 => log::LevelFilter::Debug,
+            _ => log::LevelFilter::Trace,
+        }
+    };
+    env_logger::Builder::new()
+        .filter_level(level)
+        .format_timestamp(None)
+        .format_target(false)
+        .target(env_logger::Target::Stderr)
+        .init();
+    match run(cli) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<ExitCode> {
+    if let Some(n) = cli.threads {
+        if n == 0 {
+            bail!("--threads must be at least 1");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("cannot start the worker threads")?;
+    }
+    match cli.command {
+        Command::Envelope(a) => envelope(a),
+        Command::Demo(a) => demo(a),
+    }
+}
+
+fn params(a: &AnalysisArgs) -> Result<EnvelopeParams> {
+    let bands = match a.bands.as_str() {
+        "auto" => Bands::Auto,
+        k => Bands::Fixed(
+            k.parse()
+                .with_context(|| format!("--bands: expected `auto` or a whole number, got {k:?}"))?,
+        ),
+    };
+    let p = EnvelopeParams {
+        budgets: a.budgets.clone(),
+        headline_budget: a.headline,
+        rule: match a.rule {
+            RuleArg::FirstViolation => ThresholdRule::FirstViolation,
+            RuleArg::MaxPassing => ThresholdRule::MaxPassing,
+        },
+        bootstrap: a.bootstrap,
+        seed: a.seed,
+        k_max: a.k_max,
+        restarts: a.restarts,
+        n_init: a.n_init,
+        bands,
+        high_bands: a.high_bands,
+        pi_star: a.pi_star,
+        sigma_op: a.sigma_op,
+        min_clips: a.min_clips,
+        l2_aggregation: a.l2.clone(),
+        odd_family: a.odd_family.clone(),
+        taxonomy: match a.taxonomy {
+            TaxonomyArg::Auto => TaxonomyChoice::Auto,
+            TaxonomyArg::Paper => TaxonomyChoice::Given(fogline_types::Taxonomy::paper()),
+            TaxonomyArg::Data => TaxonomyChoice::Given(fogline_types::Taxonomy {
+                classes: Vec::new(),
+                other: fogline_types::scenario::OTHER.into(),
+            }),
+        },
+        ..EnvelopeParams::default()
+    };
+    p.validate().context("invalid analysis parameters")?;
+    Ok(p)
+}
+
+fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
+    let mut p = params(&a.analysis)?;
+    let mut opts = ReadOptions {
+        allow_incomplete: a.analysis.allow_incomplete,
+        ..ReadOptions::default()
+    };
+    if let Some(path) = &a.analysis.actions {
+        opts.actions = fogline_envelope::text::ActionRules::from_toml_file(path)?;
+    }
+    let t0 = std::time::Instant::now();
+    log::info!("reading {}", a.pairs.display());
+    let table = fogline_envelope::read_pairs(&a.pairs, &opts)?;
+    log::info!(
+        "read {} pairs of {} clips in {:.2} s",
+        table.len(),
+        table.clip_ids.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    if let TaxonomyChoice::Given(tx) = &p.taxonomy {
+        if tx.classes.is_empty() {
+            p.taxonomy = TaxonomyChoice::Given(fogline_types::Taxonomy::from_labels(
+                table.scenarios.iter().map(String::as_str),
+                &tx.other,
+            ));
+        }
+    }
+    let t1 = std::time::Instant::now();
+    let env = fogline_envelope::analyze(&table, &p)?;
+    log::info!("analysed in {:.2} s", t1.elapsed().as_secs_f64());
+    let written = write_outputs(&env, &a.out)?;
+    print_summary(&env, &written, a.json)?;
+    Ok(gate(&env))
+}
+
+/// Exit 1 when acceptance was asked for and a well-sampled scenario is rejected.
+fn gate(env: &Envelope) -> ExitCode {
+    let rejected: Vec<&str> = env
+        .odd
+        .iter()
+        .filter(|o| o.accepted == Some(false) && !o.pilot)
+        .map(|o| o.scenario.as_str())
+        .collect();
+    if rejected.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        log::warn!("gate failed: rejected under π*: {}", rejected.join(", "));
+        ExitCode::from(1)
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory, so a reader
+/// never sees a half-written file and a failure leaves the previous file in place.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    let res = (|| -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if res.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    res.with_context(|| format!("cannot write {}", path.display()))
+}
+
+struct Written {
+    json: PathBuf,
+    markdown: PathBuf,
+    odd: PathBuf,
+}
+
+fn write_outputs(env: &Envelope, dir: &Path) -> Result<Written> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let json = serde_json::to_vec_pretty(env).context("cannot serialise the envelope")?;
+    let md = fogline_envelope::markdown::render(env);
+    let odd = serde_json::to_vec_pretty(&odd_spec(env)).context("cannot serialise the ODD specification")?;
+    let w = Written {
+        json: dir.join("envelope.json"),
+        markdown: dir.join("envelope.md"),
+        odd: dir.join("odd.json"),
+    };
+    write_atomic(&w.json, &json)?;
+    write_atomic(&w.markdown, md.as_bytes())?;
+    write_atomic(&w.odd, &odd)?;
+    Ok(w)
+}
+
+/// The ODD specification file: what a runtime monitor loads.
+fn odd_spec(env: &Envelope) -> serde_json::Value {
+    let p = &env.parameters;
+    serde_json::json!({
+        "schema_version": 1,
+        "kind": "fogline.odd",
+        "generated_by": env.generated_by,
+        "input_sha256": env.input.sha256,
+        "axis": env.odd.first().map(|o| o.axis.clone()),
+        "budget": p.headline_budget,
+        "rule": p.rule.name(),
+        "high_bands": env.high_severity.bands,
+        "pi_star": p.pi_star,
+        "sigma_op": p.sigma_op,
+        "entries": env.odd,
+    })
+}
+
+fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    if json {
+        let v = serde_json::json!({
+            "envelope": w.json,
+            "markdown": w.markdown,
+            "odd": w.odd,
+            "n_pairs": env.corpus.n_pairs,
+            "n_changed": env.corpus.n_changed,
+            "chosen_k": env.severity.chosen_k,
+            "odd_entries": env.odd,
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+        return Ok(());
+    }
+    let agg = env
+        .thresholds
+        .iter()
+        .find(|t| t.scenario == fogline_envelope::model::AGG_ALL && env.odd.first().is_some_and(|o| o.axis == t.axis) && t.budget == env.parameters.headline_budget);
+    writeln!(
+        out,
+        "{} pairs, {} clips, {} changed CoC; {} severity bands; aggregate threshold ≤ {}",
+        env.corpus.n_pairs,
+        env.corpus.n_clips,
+        env.corpus.n_changed,
+        env.severity.chosen_k.map_or("undefined".into(), |k| k.to_string()),
+        agg.and_then(|t| t.sigma_star).map_or("none".into(), |v| v.to_string())
+    )?;
+    writeln!(out, "{:<16} {:>6} {:>8} {:>14} {:>8}  {}", "scenario", "clips", "sigma*", "95% CI", "P(high)", "quadrant")?;
+    for o in &env.odd {
+        let lvl = |x: Option<f64>| x.map_or("none".into(), |v| v.to_string());
+        writeln!(
+            out,
+            "{:<16} {:>6} {:>8} {:>14} {:>8}  {}{}{}",
+            o.scenario,
+            o.n_clips,
+            format!("{}{}", lvl(o.sigma_star), if o.right_censored { "+" } else { "" }),
+            o.ci95.map_or("-".into(), |[a, b]| format!("[{}, {}]", lvl(a), lvl(b))),
+            o.p_high.map_or("-".into(), |v| format!("{:.1}%", 100.0 * v)),
+            o.quadrant,
+            if o.pilot { " (pilot)" } else { "" },
+            match o.accepted {
+                Some(true) => " ACCEPTED",
+                Some(false) => " REJECTED",
+                None => "",
+            }
+        )?;
+    }
+    writeln!(out, "{}", w.json.display())?;
+    writeln!(out, "{}", w.markdown.display())?;
+    writeln!(out, "{}", w.odd.display())?;
+    Ok(())
+}
+
+fn demo(a: DemoArgs) -> Result<ExitCode> {
+    if a.clips == 0 {
+        bail!("--clips must be at least 1");
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    log::info!(
+        "demo: the synthetic world, reference planner and campaign runner are not built yet; \
+         this run analyses a synthetic pairs corpus of {} clips (seed {})",
+        a.clips,
+        a.seed
+    );
+    let sp = fogline_envelope::synthetic::SyntheticParams {
+        n_clips: a.clips,
+        seed: a.seed,
+    };
+    let pairs = a.out.join("pairs.csv");
+    let mut csv = Vec::new();
+    fogline_envelope::synthetic::write_csv(&sp, &mut csv).context("cannot render the synthetic corpus")?;
+    write_atomic(&pairs, &csv)?;
+    log::info!("wrote {}", pairs.display());
+    let table = fogline_envelope::read_pairs(&pairs, &ReadOptions::default())?;
+    let t = std::time::Instant::now();
+    let env = fogline_envelope::analyze(&table, &EnvelopeParams { seed: a.seed, ..EnvelopeParams::default() })?;
+    log::info!("analysed {} pairs in {:.2} s", table.len(), t.elapsed().as_secs_f64());
+    let w = write_outputs(&env, &a.out)?;
+    print_summary(&env, &w, false)?;
+    Ok(ExitCode::SUCCESS)
+}
