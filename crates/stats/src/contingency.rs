@@ -43,11 +43,18 @@ pub fn chi2_contingency(table: &[Vec<f64>]) -> Result<ChiSquare> {
     let ncols = table.first().map_or(0, Vec::len);
     for (i, row) in table.iter().enumerate() {
         if row.len() != ncols {
-            return Err(StatsError::LengthMismatch { what: "chi2_contingency rows (row 0 vs a later row)", left: ncols, right: row.len() });
+            return Err(StatsError::LengthMismatch {
+                what: "chi2_contingency rows (row 0 vs a later row)",
+                left: ncols,
+                right: row.len(),
+            });
         }
         for (j, &v) in row.iter().enumerate() {
             if !v.is_finite() {
-                return Err(StatsError::NonFinite { what: WHAT, index: i * ncols + j });
+                return Err(StatsError::NonFinite {
+                    what: WHAT,
+                    index: i * ncols + j,
+                });
             }
             if v < 0.0 {
                 return Err(StatsError::InvalidParam {
@@ -90,9 +97,20 @@ pub fn chi2_contingency(table: &[Vec<f64>]) -> Result<ChiSquare> {
     let p_value = chi2_sf(statistic, dof as f64);
     let cramers_v = (statistic / n / (r.min(c) - 1) as f64).sqrt().min(1.0);
     if !statistic.is_finite() || !cramers_v.is_finite() {
-        return Err(StatsError::Undefined { what: WHAT, reason: "the statistic overflows f64".to_string() });
+        return Err(StatsError::Undefined {
+            what: WHAT,
+            reason: "the statistic overflows f64".to_string(),
+        });
     }
-    Ok(ChiSquare { statistic, dof, p_value, n, cramers_v, rows_used: r, cols_used: c })
+    Ok(ChiSquare {
+        statistic,
+        dof,
+        p_value,
+        n,
+        cramers_v,
+        rows_used: r,
+        cols_used: c,
+    })
 }
 
 #[cfg(test)]
@@ -104,13 +122,32 @@ mod tests {
         let t = vec![vec![10.0, 0.0], vec![0.0, 10.0]];
         let c = chi2_contingency(&t).unwrap();
         assert_eq!((c.statistic, c.dof, c.cramers_v), (20.0, 1, 1.0));
-        let zero_row = vec![vec![10.0, 5.0, 0.0], vec![0.0, 0.0, 0.0], vec![3.0, 7.0, 0.0]];
+        let zero_row = vec![
+            vec![10.0, 5.0, 0.0],
+            vec![0.0, 0.0, 0.0],
+            vec![3.0, 7.0, 0.0],
+        ];
         let c = chi2_contingency(&zero_row).unwrap();
         assert_eq!((c.rows_used, c.cols_used, c.dof), (2, 2, 1));
-        assert!(matches!(chi2_contingency(&[vec![1.0, 2.0]]), Err(StatsError::Undefined { .. })));
-        assert!(matches!(chi2_contingency(&[vec![1.0, 2.0], vec![1.0]]), Err(StatsError::LengthMismatch { .. })));
-        assert!(matches!(chi2_contingency(&[vec![1.0, -2.0], vec![1.0, 1.0]]), Err(StatsError::InvalidParam { .. })));
-        assert!(matches!(chi2_contingency(&[vec![1.0, 2.0], vec![f64::NAN, 1.0]]), Err(StatsError::NonFinite { index: 2, .. })));
-        assert!(matches!(chi2_contingency(&[]), Err(StatsError::Undefined { .. })));
+        assert!(matches!(
+            chi2_contingency(&[vec![1.0, 2.0]]),
+            Err(StatsError::Undefined { .. })
+        ));
+        assert!(matches!(
+            chi2_contingency(&[vec![1.0, 2.0], vec![1.0]]),
+            Err(StatsError::LengthMismatch { .. })
+        ));
+        assert!(matches!(
+            chi2_contingency(&[vec![1.0, -2.0], vec![1.0, 1.0]]),
+            Err(StatsError::InvalidParam { .. })
+        ));
+        assert!(matches!(
+            chi2_contingency(&[vec![1.0, 2.0], vec![f64::NAN, 1.0]]),
+            Err(StatsError::NonFinite { index: 2, .. })
+        ));
+        assert!(matches!(
+            chi2_contingency(&[]),
+            Err(StatsError::Undefined { .. })
+        ));
     }
 }

@@ -23,10 +23,18 @@ pub struct Correlation {
 
 fn check_pairs(what: &'static str, nx: usize, ny: usize) -> Result<()> {
     if nx != ny {
-        return Err(StatsError::LengthMismatch { what, left: nx, right: ny });
+        return Err(StatsError::LengthMismatch {
+            what,
+            left: nx,
+            right: ny,
+        });
     }
     if nx < 2 {
-        return Err(StatsError::TooFewSamples { what, needed: 2, got: nx });
+        return Err(StatsError::TooFewSamples {
+            what,
+            needed: 2,
+            got: nx,
+        });
     }
     Ok(())
 }
@@ -162,7 +170,11 @@ pub fn spearman(x: &[f64], y: &[f64]) -> Result<Correlation> {
     }
     let dof = (n - 2) as f64;
     let den = (r + 1.0) * (1.0 - r);
-    let t = if den > 0.0 { r * (dof / den).sqrt() } else { f64::INFINITY };
+    let t = if den > 0.0 {
+        r * (dof / den).sqrt()
+    } else {
+        f64::INFINITY
+    };
     let p = (2.0 * t_sf(t.abs(), dof)).min(1.0);
     Ok(finish(r, p, n))
 }
@@ -181,10 +193,14 @@ pub fn point_biserial(flags: &[bool], y: &[f64]) -> Result<Correlation> {
     let n = y.len();
     let n1 = flags.iter().filter(|&&f| f).count();
     if n1 == 0 || n1 == n {
-        return Err(StatsError::ConstantSample { what: "point_biserial flags" });
+        return Err(StatsError::ConstantSample {
+            what: "point_biserial flags",
+        });
     }
     if is_constant(y) {
-        return Err(StatsError::ConstantSample { what: "point_biserial y" });
+        return Err(StatsError::ConstantSample {
+            what: "point_biserial y",
+        });
     }
     let sy = pow2_scale(max_abs(y));
     let [sum_y] = sum_map(y, |b| [b * sy]);
@@ -221,7 +237,10 @@ mod tests {
 
     #[test]
     fn ranks_with_ties() {
-        assert_eq!(rank_average(&[3.0, 1.0, 3.0, 2.0, -0.0, 0.0]), vec![5.5, 3.0, 5.5, 4.0, 1.5, 1.5]);
+        assert_eq!(
+            rank_average(&[3.0, 1.0, 3.0, 2.0, -0.0, 0.0]),
+            vec![5.5, 3.0, 5.5, 4.0, 1.5, 1.5]
+        );
         assert!(rank_average(&[]).is_empty());
     }
 
@@ -229,9 +248,18 @@ mod tests {
     fn edge_cases() {
         let c = pearson(&[1.0, 2.0], &[5.0, 3.0]).unwrap();
         assert_eq!((c.r, c.p_value), (-1.0, 1.0));
-        assert!(matches!(pearson(&[1.0], &[1.0]), Err(StatsError::TooFewSamples { .. })));
-        assert!(matches!(pearson(&[1.0, 1.0, 1.0], &[1.0, 2.0, 3.0]), Err(StatsError::ConstantSample { .. })));
-        assert!(matches!(spearman(&[1.0, 2.0], &[1.0]), Err(StatsError::LengthMismatch { .. })));
+        assert!(matches!(
+            pearson(&[1.0], &[1.0]),
+            Err(StatsError::TooFewSamples { .. })
+        ));
+        assert!(matches!(
+            pearson(&[1.0, 1.0, 1.0], &[1.0, 2.0, 3.0]),
+            Err(StatsError::ConstantSample { .. })
+        ));
+        assert!(matches!(
+            spearman(&[1.0, 2.0], &[1.0]),
+            Err(StatsError::LengthMismatch { .. })
+        ));
         let s = spearman(&[1.0, 2.0, 3.0, 4.0], &[1.0, 4.0, 9.0, 16.0]).unwrap();
         assert_eq!((s.r, s.p_value), (1.0, 0.0));
         let pb = point_biserial(&[true, false, true, false], &[2.0, 1.0, 2.0, 1.0]).unwrap();

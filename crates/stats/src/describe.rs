@@ -41,7 +41,11 @@ impl Compensated {
 /// Sums `K` functions of paired elements of `x` and `y` (equal lengths): blocks of
 /// [`BLOCK`] values are summed in four lanes, block sums are added with compensation.
 #[inline]
-pub(crate) fn sum_map2<const K: usize>(x: &[f64], y: &[f64], f: impl Fn(f64, f64) -> [f64; K]) -> [f64; K] {
+pub(crate) fn sum_map2<const K: usize>(
+    x: &[f64],
+    y: &[f64],
+    f: impl Fn(f64, f64) -> [f64; K],
+) -> [f64; K] {
     debug_assert_eq!(x.len(), y.len());
     let mut total = [Compensated::default(); K];
     for (bx, by) in x.chunks(BLOCK).zip(y.chunks(BLOCK)) {
@@ -125,7 +129,14 @@ impl Moments {
             let d2 = d * d;
             [d2, d2 * d, d2 * d2]
         });
-        Moments { n, mean, s2, s3, s4, scale }
+        Moments {
+            n,
+            mean,
+            s2,
+            s3,
+            s4,
+            scale,
+        }
     }
 
     /// SciPy's test for a (numerically) constant sample in `skew`/`kurtosis`:
@@ -153,14 +164,21 @@ impl Moments {
 }
 
 fn need(what: &'static str, needed: usize, got: usize) -> Result<()> {
-    if got < needed { Err(StatsError::TooFewSamples { what, needed, got }) } else { Ok(()) }
+    if got < needed {
+        Err(StatsError::TooFewSamples { what, needed, got })
+    } else {
+        Ok(())
+    }
 }
 
 fn finite_or_overflow(what: &'static str, v: f64) -> Result<f64> {
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(StatsError::Undefined { what, reason: "the result overflows f64".to_string() })
+        Err(StatsError::Undefined {
+            what,
+            reason: "the result overflows f64".to_string(),
+        })
     }
 }
 
@@ -218,7 +236,9 @@ pub fn excess_kurtosis(x: &[f64]) -> Result<f64> {
     check_finite("excess_kurtosis", x)?;
     let m = Moments::of(x);
     if m.is_constant() {
-        return Err(StatsError::ConstantSample { what: "excess_kurtosis" });
+        return Err(StatsError::ConstantSample {
+            what: "excess_kurtosis",
+        });
     }
     finite_or_overflow("excess_kurtosis", m.excess_kurtosis())
 }
@@ -236,7 +256,9 @@ pub fn bimodality_coefficient(x: &[f64]) -> Result<f64> {
     check_finite("bimodality_coefficient", x)?;
     let m = Moments::of(x);
     if m.is_constant() {
-        return Err(StatsError::ConstantSample { what: "bimodality_coefficient" });
+        return Err(StatsError::ConstantSample {
+            what: "bimodality_coefficient",
+        });
     }
     let n = m.n;
     let g = m.skewness();
@@ -254,10 +276,22 @@ mod tests {
         assert_eq!(mean(&[1.0, 2.0, 3.0, 4.0]).unwrap(), 2.5);
         assert_eq!(variance(&[1.0, 2.0, 3.0, 4.0], 1).unwrap(), 5.0 / 3.0);
         assert_eq!(skewness(&[1.0, 2.0, 3.0, 4.0, 5.0]).unwrap(), 0.0);
-        assert!(matches!(skewness(&[2.0; 5]), Err(StatsError::ConstantSample { .. })));
-        assert!(matches!(excess_kurtosis(&[1.0, 2.0, 3.0]), Err(StatsError::TooFewSamples { .. })));
-        assert!(matches!(variance(&[1.0], 1), Err(StatsError::TooFewSamples { .. })));
-        assert!(matches!(mean(&[1.0, f64::NAN]), Err(StatsError::NonFinite { index: 1, .. })));
+        assert!(matches!(
+            skewness(&[2.0; 5]),
+            Err(StatsError::ConstantSample { .. })
+        ));
+        assert!(matches!(
+            excess_kurtosis(&[1.0, 2.0, 3.0]),
+            Err(StatsError::TooFewSamples { .. })
+        ));
+        assert!(matches!(
+            variance(&[1.0], 1),
+            Err(StatsError::TooFewSamples { .. })
+        ));
+        assert!(matches!(
+            mean(&[1.0, f64::NAN]),
+            Err(StatsError::NonFinite { index: 1, .. })
+        ));
     }
 
     #[test]

@@ -15,14 +15,26 @@ use crate::special::{norm_cdf, norm_ppf};
 /// `ConstantSample`; non-finite values are `NonFinite`. Cost O(n_x + n_y), no allocation.
 pub fn cohens_d(x: &[f64], y: &[f64]) -> Result<f64> {
     if x.is_empty() {
-        return Err(StatsError::TooFewSamples { what: "cohens_d x", needed: 1, got: 0 });
+        return Err(StatsError::TooFewSamples {
+            what: "cohens_d x",
+            needed: 1,
+            got: 0,
+        });
     }
     if y.is_empty() {
-        return Err(StatsError::TooFewSamples { what: "cohens_d y", needed: 1, got: 0 });
+        return Err(StatsError::TooFewSamples {
+            what: "cohens_d y",
+            needed: 1,
+            got: 0,
+        });
     }
     let total = x.len() + y.len();
     if total < 3 {
-        return Err(StatsError::TooFewSamples { what: "cohens_d (both samples)", needed: 3, got: total });
+        return Err(StatsError::TooFewSamples {
+            what: "cohens_d (both samples)",
+            needed: 3,
+            got: total,
+        });
     }
     check_finite("cohens_d x", x)?;
     check_finite("cohens_d y", y)?;
@@ -33,13 +45,18 @@ pub fn cohens_d(x: &[f64], y: &[f64]) -> Result<f64> {
     let ss = mx.s2 / mx.scale / mx.scale + my.s2 / my.scale / my.scale;
     let pooled_var = ss / (total - 2) as f64;
     if pooled_var <= 0.0 {
-        return Err(StatsError::ConstantSample { what: "cohens_d (pooled)" });
+        return Err(StatsError::ConstantSample {
+            what: "cohens_d (pooled)",
+        });
     }
     let d = (mean_x - mean_y) / pooled_var.sqrt();
     if pooled_var.is_finite() && d.is_finite() {
         Ok(d)
     } else {
-        Err(StatsError::Undefined { what: "cohens_d", reason: "the pooled variance overflows f64".to_string() })
+        Err(StatsError::Undefined {
+            what: "cohens_d",
+            reason: "the pooled variance overflows f64".to_string(),
+        })
     }
 }
 
@@ -55,16 +72,30 @@ pub fn cohens_d(x: &[f64], y: &[f64]) -> Result<f64> {
 /// `n_x` or `n_y` zero (`TooFewSamples`). Cost O(1).
 pub fn two_sample_power(d: f64, n_x: usize, n_y: usize, alpha: f64) -> Result<f64> {
     if !d.is_finite() {
-        return Err(StatsError::InvalidParam { name: "d", reason: format!("must be finite, got {d}") });
+        return Err(StatsError::InvalidParam {
+            name: "d",
+            reason: format!("must be finite, got {d}"),
+        });
     }
     if !(alpha > 0.0 && alpha < 1.0) {
-        return Err(StatsError::InvalidParam { name: "alpha", reason: format!("must be in (0, 1), got {alpha}") });
+        return Err(StatsError::InvalidParam {
+            name: "alpha",
+            reason: format!("must be in (0, 1), got {alpha}"),
+        });
     }
     if n_x == 0 {
-        return Err(StatsError::TooFewSamples { what: "two_sample_power n_x", needed: 1, got: 0 });
+        return Err(StatsError::TooFewSamples {
+            what: "two_sample_power n_x",
+            needed: 1,
+            got: 0,
+        });
     }
     if n_y == 0 {
-        return Err(StatsError::TooFewSamples { what: "two_sample_power n_y", needed: 1, got: 0 });
+        return Err(StatsError::TooFewSamples {
+            what: "two_sample_power n_y",
+            needed: 1,
+            got: 0,
+        });
     }
     let (nx, ny) = (n_x as f64, n_y as f64);
     let n_eff = nx * ny / (nx + ny);
@@ -82,8 +113,14 @@ mod tests {
     fn d_and_power() {
         let d = cohens_d(&[1.0, 2.0, 3.0], &[2.0, 3.0, 4.0]).unwrap();
         assert!((d + 1.0).abs() < 1e-15);
-        assert!(matches!(cohens_d(&[1.0, 1.0], &[1.0]), Err(StatsError::ConstantSample { .. })));
-        assert!(matches!(cohens_d(&[1.0], &[2.0]), Err(StatsError::TooFewSamples { .. })));
+        assert!(matches!(
+            cohens_d(&[1.0, 1.0], &[1.0]),
+            Err(StatsError::ConstantSample { .. })
+        ));
+        assert!(matches!(
+            cohens_d(&[1.0], &[2.0]),
+            Err(StatsError::TooFewSamples { .. })
+        ));
         let p0 = two_sample_power(0.0, 20, 20, 0.05).unwrap();
         assert!((p0 - 0.05).abs() < 1e-15);
         let p = two_sample_power(0.5, 64, 64, 0.05).unwrap();

@@ -40,27 +40,45 @@ pub fn icc(matrix: &[Vec<f64>]) -> Result<Icc> {
     const WHAT: &str = "icc";
     let n = matrix.len();
     if n < 2 {
-        return Err(StatsError::TooFewSamples { what: "icc targets (rows)", needed: 2, got: n });
+        return Err(StatsError::TooFewSamples {
+            what: "icc targets (rows)",
+            needed: 2,
+            got: n,
+        });
     }
     let k = matrix[0].len();
     if k < 2 {
-        return Err(StatsError::TooFewSamples { what: "icc raters (columns)", needed: 2, got: k });
+        return Err(StatsError::TooFewSamples {
+            what: "icc raters (columns)",
+            needed: 2,
+            got: k,
+        });
     }
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for (i, row) in matrix.iter().enumerate() {
         if row.len() != k {
-            return Err(StatsError::LengthMismatch { what: "icc rows (row 0 vs a later row)", left: k, right: row.len() });
+            return Err(StatsError::LengthMismatch {
+                what: "icc rows (row 0 vs a later row)",
+                left: k,
+                right: row.len(),
+            });
         }
         for (j, &v) in row.iter().enumerate() {
             if !v.is_finite() {
-                return Err(StatsError::NonFinite { what: WHAT, index: i * k + j });
+                return Err(StatsError::NonFinite {
+                    what: WHAT,
+                    index: i * k + j,
+                });
             }
             lo = lo.min(v);
             hi = hi.max(v);
         }
     }
     if lo == hi {
-        return Err(StatsError::Undefined { what: WHAT, reason: "all values are equal".to_string() });
+        return Err(StatsError::Undefined {
+            what: WHAT,
+            reason: "all values are equal".to_string(),
+        });
     }
     let (nf, kf) = (n as f64, k as f64);
     let mut col_mean = vec![0.0f64; k];
@@ -92,14 +110,28 @@ pub fn icc(matrix: &[Vec<f64>]) -> Result<Icc> {
     let den2 = ms_rows + (kf - 1.0) * ms_error + kf * (ms_cols - ms_error) / nf;
     let den3 = ms_rows + (kf - 1.0) * ms_error;
     if den2.is_nan() || den2 <= 0.0 || den3.is_nan() || den3 <= 0.0 {
-        return Err(StatsError::Undefined { what: WHAT, reason: "a denominator of the ICC is zero".to_string() });
+        return Err(StatsError::Undefined {
+            what: WHAT,
+            reason: "a denominator of the ICC is zero".to_string(),
+        });
     }
     let icc2_1 = (ms_rows - ms_error) / den2;
     let icc3_1 = (ms_rows - ms_error) / den3;
     if !(icc2_1.is_finite() && icc3_1.is_finite()) {
-        return Err(StatsError::Undefined { what: WHAT, reason: "the mean squares overflow f64".to_string() });
+        return Err(StatsError::Undefined {
+            what: WHAT,
+            reason: "the mean squares overflow f64".to_string(),
+        });
     }
-    Ok(Icc { icc2_1, icc3_1, n_targets: n, n_raters: k, ms_rows, ms_cols, ms_error })
+    Ok(Icc {
+        icc2_1,
+        icc3_1,
+        n_targets: n,
+        n_raters: k,
+        ms_rows,
+        ms_cols,
+        ms_error,
+    })
 }
 
 #[cfg(test)]
@@ -116,8 +148,17 @@ mod tests {
         let r = icc(&m).unwrap();
         assert_eq!(r.icc3_1, 1.0);
         assert!(r.icc2_1 < 1.0);
-        assert!(matches!(icc(&[vec![1.0, 1.0], vec![1.0, 1.0]]), Err(StatsError::Undefined { .. })));
-        assert!(matches!(icc(&[vec![1.0, 2.0]]), Err(StatsError::TooFewSamples { .. })));
-        assert!(matches!(icc(&[vec![1.0, 2.0], vec![1.0]]), Err(StatsError::LengthMismatch { .. })));
+        assert!(matches!(
+            icc(&[vec![1.0, 1.0], vec![1.0, 1.0]]),
+            Err(StatsError::Undefined { .. })
+        ));
+        assert!(matches!(
+            icc(&[vec![1.0, 2.0]]),
+            Err(StatsError::TooFewSamples { .. })
+        ));
+        assert!(matches!(
+            icc(&[vec![1.0, 2.0], vec![1.0]]),
+            Err(StatsError::LengthMismatch { .. })
+        ));
     }
 }

@@ -38,10 +38,18 @@ pub struct MannWhitney {
 pub fn mann_whitney_u(x: &[f64], y: &[f64]) -> Result<MannWhitney> {
     let (n_x, n_y) = (x.len(), y.len());
     if n_x == 0 {
-        return Err(StatsError::TooFewSamples { what: "mann_whitney_u x", needed: 1, got: 0 });
+        return Err(StatsError::TooFewSamples {
+            what: "mann_whitney_u x",
+            needed: 1,
+            got: 0,
+        });
     }
     if n_y == 0 {
-        return Err(StatsError::TooFewSamples { what: "mann_whitney_u y", needed: 1, got: 0 });
+        return Err(StatsError::TooFewSamples {
+            what: "mann_whitney_u y",
+            needed: 1,
+            got: 0,
+        });
     }
     check_finite("mann_whitney_u x", x)?;
     check_finite("mann_whitney_u y", y)?;
@@ -55,7 +63,11 @@ pub fn mann_whitney_u(x: &[f64], y: &[f64]) -> Result<MannWhitney> {
     let mut r1 = 0.0f64;
     let mut tie_term: u128 = 0;
     while i < n_x || j < n_y {
-        let v = if j >= n_y || (i < n_x && xs[i] <= ys[j]) { xs[i] } else { ys[j] };
+        let v = if j >= n_y || (i < n_x && xs[i] <= ys[j]) {
+            xs[i]
+        } else {
+            ys[j]
+        };
         let i0 = i;
         while i < n_x && xs[i] == v {
             i += 1;
@@ -87,7 +99,13 @@ pub fn mann_whitney_u(x: &[f64], y: &[f64]) -> Result<MannWhitney> {
     }
     let z = (u1.max(u2) - mu - 0.5) / sigma;
     let p_value = (2.0 * norm_sf(z)).clamp(0.0, 1.0);
-    Ok(MannWhitney { u: u1, z, p_value, n_x, n_y })
+    Ok(MannWhitney {
+        u: u1,
+        z,
+        p_value,
+        n_x,
+        n_y,
+    })
 }
 
 #[cfg(test)]
@@ -100,8 +118,14 @@ mod tests {
         assert_eq!((m.u, m.z, m.p_value), (0.0, 0.0, 1.0));
         let m = mann_whitney_u(&[1.0, 2.0, 3.0], &[4.0, 5.0, 6.0, 7.0]).unwrap();
         assert_eq!(m.u, 0.0);
-        assert!(matches!(mann_whitney_u(&[1.0, 1.0], &[1.0]), Err(StatsError::Undefined { .. })));
-        assert!(matches!(mann_whitney_u(&[], &[1.0]), Err(StatsError::TooFewSamples { .. })));
+        assert!(matches!(
+            mann_whitney_u(&[1.0, 1.0], &[1.0]),
+            Err(StatsError::Undefined { .. })
+        ));
+        assert!(matches!(
+            mann_whitney_u(&[], &[1.0]),
+            Err(StatsError::TooFewSamples { .. })
+        ));
         // -0.0 and 0.0 tie.
         let m = mann_whitney_u(&[-0.0, 1.0], &[0.0, 2.0]).unwrap();
         assert_eq!(m.u, 1.5);

@@ -39,6 +39,8 @@ const EPS: f64 = f64::EPSILON;
 /// Iteration cap of series and continued fractions (they need O(√a) terms near the centre,
 /// so this covers parameters up to ~1e8).
 const MAX_ITER: usize = 200_000;
+/// From this `a` on (with small `b`, `x >= 1/2`), `I_x(a, b)` uses the large-`a` expansion.
+const LARGE_A: f64 = 15.0;
 /// Above this, `ln Γ` and the prefactors use Stirling's series with its error term.
 const STIRLING_MIN: f64 = 10.0;
 
@@ -51,7 +53,12 @@ const CODY_A: [f64; 5] = [
     3209.3775891384694,
     0.18577770618460315,
 ];
-const CODY_B: [f64; 4] = [23.601290952344122, 244.02463793444417, 1282.6165260773723, 2844.236833439171];
+const CODY_B: [f64; 4] = [
+    23.601290952344122,
+    244.02463793444417,
+    1282.6165260773723,
+    2844.236833439171,
+];
 const CODY_C: [f64; 9] = [
     0.5641884969886701,
     8.883149794388377,
@@ -226,6 +233,40 @@ const STIRLING: [f64; 9] = [
     0.17964437236883057,
 ];
 
+/// `ln(sinh(s/2) / (s/2)) = Σ_{k≥1} c_k s^{2k}` with `c_k = B_{2k} / (2k (2k)!)` (mpmath).
+const LN_SINHC: [f64; 30] = [
+    0.041666666666666664,
+    -0.00034722222222222224,
+    5.5114638447971785e-06,
+    -1.033399470899471e-07,
+    2.08767569878681e-09,
+    -4.403491782239578e-11,
+    9.55895466477477e-13,
+    -2.1185501852016142e-14,
+    4.770034475709914e-16,
+    -1.087434349279031e-17,
+    2.5040921947091955e-19,
+    -5.814360285755218e-21,
+    1.3595027075497952e-22,
+    -3.1976847953705525e-24,
+    7.559841507792277e-26,
+    -1.7952470840225633e-27,
+    4.279919045926073e-29,
+    -1.0238874835181417e-30,
+    2.4570353308144855e-32,
+    -5.912556039251575e-34,
+    1.4263504196386035e-35,
+    -3.448761101064296e-37,
+    8.355995924900409e-39,
+    -2.0284068901347272e-40,
+    4.932494088401362e-42,
+    -1.2013609118886046e-43,
+    2.93037597123054e-45,
+    -7.157631582051671e-47,
+    1.7505303199257856e-48,
+    -4.286340263736453e-50,
+];
+
 /// Polynomial with coefficients in increasing powers, by Horner's rule.
 #[inline]
 fn poly(c: &[f64], x: f64) -> f64 {
@@ -295,7 +336,11 @@ pub fn norm_sf(x: f64) -> f64 {
         return 0.5 - 0.5 * erf_small(u);
     }
     let ax = x.abs();
-    let tail = if ax > 40.0 { 0.0 } else { 0.5 * erfcx_large(u.abs()) * exp_neg_half_sq(ax) };
+    let tail = if ax > 40.0 {
+        0.0
+    } else {
+        0.5 * erfcx_large(u.abs()) * exp_neg_half_sq(ax)
+    };
     if x > 0.0 { tail } else { 1.0 - tail }
 }
 
@@ -343,7 +388,11 @@ pub fn norm_ppf(p: f64) -> f64 {
     if ax <= 37.0 {
         let density = exp_neg_half_sq(ax) / SQRT_2PI;
         // Φ(x) - p, from the tail p lies in (1 - p is exact for p > 1/2).
-        let f = if q <= 0.0 { norm_cdf(x) - p } else { (1.0 - p) - norm_sf(x) };
+        let f = if q <= 0.0 {
+            norm_cdf(x) - p
+        } else {
+            (1.0 - p) - norm_sf(x)
+        };
         let t = f / density;
         if t.is_finite() {
             x -= t / (1.0 + 0.5 * x * t);
@@ -464,7 +513,11 @@ fn log1pmx(s: f64) -> f64 {
 
 /// `a · (ln r - s)` where `r = 1 + s`, given `ln r` separately for large `|s|`.
 fn scaled_log1pmx(a: f64, s: f64, ln_r: f64) -> f64 {
-    if s.abs() < 0.5 { a * log1pmx(s) } else { a * (ln_r - s) }
+    if s.abs() < 0.5 {
+        a * log1pmx(s)
+    } else {
+        a * (ln_r - s)
+    }
 }
 
 /// `ln(x^a e^{-x} / Γ(a))` for `a > 0`, `x > 0`.
@@ -494,9 +547,9 @@ fn gamma_p_series(a: f64, x: f64) -> f64 {
     (ln_gamma_prefix(a, x) + (sum / a).ln()).exp()
 }
 
-/// Regularized upper incomplete gamma `Q(a, x)` by its continued fraction (modified Lentz),
-/// for `x >= a + 1` or (`a < 1`, `x >= 1.5`).
-fn gamma_q_cf(a: f64, x: f64) -> f64 {
+/// `Γ(a, x) e^x x^{-a}` by the continued fraction of `Q(a, x)` (modified Lentz), for
+/// `x >= a + 1` or (`a < 1`, `x >= 1.5`).
+fn gamma_q_cf_scaled(a: f64, x: f64) -> f64 {
     let mut b = x + 1.0 - a;
     let mut c = 1.0 / TINY;
     let mut d = 1.0 / b;
@@ -520,7 +573,21 @@ fn gamma_q_cf(a: f64, x: f64) -> f64 {
             break;
         }
     }
-    (ln_gamma_prefix(a, x) + h.ln()).exp()
+    h
+}
+
+/// Whether the continued fraction of `Q(a, x)` converges fast.
+fn gamma_cf_region(a: f64, x: f64) -> bool {
+    if a < 1.0 { x >= 1.5 } else { x >= a + 1.0 }
+}
+
+/// `Γ(a, x) e^x x^{-a}` for `a > 0`, `x > 0` (no overflow for the `x` used here).
+fn gamma_upper_scaled(a: f64, x: f64) -> f64 {
+    if gamma_cf_region(a, x) {
+        gamma_q_cf_scaled(a, x)
+    } else {
+        gamma_inc_upper_reg(a, x) * (ln_gamma(a) + x - a * x.ln()).exp()
+    }
 }
 
 /// `Q(a, x)` for `a < 1`, `x < 1.5`, without cancellation (Q ≈ a·E₁(x) for tiny a):
@@ -560,12 +627,12 @@ pub fn gamma_inc_upper_reg(a: f64, x: f64) -> f64 {
     if x.is_infinite() {
         return 0.0;
     }
-    if a < 1.0 {
-        if x < 1.5 { gamma_q_small_a(a, x) } else { gamma_q_cf(a, x) }
-    } else if x < a + 1.0 {
-        1.0 - gamma_p_series(a, x)
+    if gamma_cf_region(a, x) {
+        (ln_gamma_prefix(a, x) + gamma_q_cf_scaled(a, x).ln()).exp()
+    } else if a < 1.0 {
+        gamma_q_small_a(a, x)
     } else {
-        gamma_q_cf(a, x)
+        1.0 - gamma_p_series(a, x)
     }
 }
 
@@ -583,25 +650,99 @@ fn ln_beta_prefix(a: f64, b: f64, x: f64, y: f64) -> f64 {
         // a ln(x/x0) + b ln(y/y0) + ½ ln(ab/(a+b)) - ln √(2π) + Δstirlerr, x0 = a/(a+b);
         // the linear parts of the two logs cancel exactly, leaving a·log1pmx + b·log1pmx.
         let ab = a + b;
-        let t = x * b - y * a;
+        // t = x b - y a = x (a+b) - a = b - y (a+b), from whichever of x, y is exact, with
+        // a+b as a double-double and one rounding (fma): t's relative error is multiplied by
+        // a·s² in the exponent.
+        let bb = ab - a;
+        let ab_err = (a - (ab - bb)) + (b - bb);
+        let t = if x <= y {
+            x.mul_add(ab, -a) + x * ab_err
+        } else {
+            (-y).mul_add(ab, b) - y * ab_err
+        };
         let sx = t / a;
         let sy = -t / b;
-        let core = scaled_log1pmx(a, sx, lnx + (ab / a).ln()) + scaled_log1pmx(b, sy, lny + (ab / b).ln());
+        let core =
+            scaled_log1pmx(a, sx, lnx + (ab / a).ln()) + scaled_log1pmx(b, sy, lny + (ab / b).ln());
         core + 0.5 * (a / ab * b).ln() - LN_SQRT_2PI + stirlerr(ab) - stirlerr(a) - stirlerr(b)
     } else if a >= STIRLING_MIN {
-        // ln Γ(a+b) - ln Γ(a) = (a - ½) ln1p(b/a) + b ln(a+b) - b + stirlerr(a+b) - stirlerr(a)
-        let ab = a + b;
-        a * lnx + b * (lny + ab.ln()) + (a - 0.5) * (b / a).ln_1p() - b + stirlerr(ab)
-            - stirlerr(a)
-            - ln_gamma(b)
+        a * lnx + b * lny - ln_beta_large_a(a, b)
     } else if b >= STIRLING_MIN {
-        let ab = a + b;
-        b * lny + a * (lnx + ab.ln()) + (b - 0.5) * (a / b).ln_1p() - a + stirlerr(ab)
-            - stirlerr(b)
-            - ln_gamma(a)
+        a * lnx + b * lny - ln_beta_large_a(b, a)
     } else {
         a * lnx + b * lny + ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b)
     }
+}
+
+/// `ln B(a, b)` for `a >= 10` through Stirling's error term:
+/// `ln Γ(a+b) - ln Γ(a) = (a - ½) ln1p(b/a) + b ln(a+b) - b + stirlerr(a+b) - stirlerr(a)`.
+fn ln_beta_large_a(a: f64, b: f64) -> f64 {
+    let ab = a + b;
+    ln_gamma(b) - ((a - 0.5) * (b / a).ln_1p() + b * ab.ln() - b + stirlerr(ab) - stirlerr(a))
+}
+
+/// `(I_x(a, b), 1 - I_x(a, b))` for large `a` and small `b` by the asymptotic expansion of
+/// DiDonato & Morris (TOMS 708's `BGRAT`, after Temme). With `T = a + (b-1)/2`,
+/// `ℓ = -ln x` (from `y`, so accurate for `x` near 1 where the continued fraction loses about
+/// `1/y` of its digits) and `z = Tℓ`,
+/// `I_x(a, b) = ℓ^b e^{-z} / B(a, b) · Σ_n d_n G_n`, `G_n = T^{-2n} Γ(b+2n, z) e^z z^{-b}`,
+/// where `d_n` are the coefficients of `(sinh(s/2)/(s/2))^{b-1}` in `s^{2n}`; the complement
+/// uses the lower incomplete gamma function the same way.
+fn beta_inc_large_a(a: f64, b: f64, x: f64, y: f64) -> (f64, f64) {
+    const TERMS: usize = 30;
+    let ell = if x <= 0.5 { -x.ln() } else { -(-y).ln_1p() };
+    let t = a + 0.5 * (b - 1.0);
+    let z = t * ell;
+    let ln_pf = b * ell.ln() - z - ln_beta_large_a(a, b);
+    // Coefficients of exp((b-1) ln sinhc) by the recurrence n d_n = Σ k g_k d_{n-k}.
+    let mut d = [0.0f64; TERMS + 1];
+    d[0] = 1.0;
+    for n in 1..=TERMS {
+        let mut s = 0.0;
+        for k in 1..=n {
+            s += k as f64 * (b - 1.0) * LN_SINHC[k - 1] * d[n - k];
+        }
+        d[n] = s / n as f64;
+    }
+    let ell2 = ell * ell;
+    let inv_t2 = 1.0 / (t * t);
+    let mut g = gamma_upper_scaled(b, z);
+    let mut sum = g;
+    let mut pow = 1.0;
+    for n in 0..TERMS {
+        let s = b + 2.0 * n as f64;
+        g = inv_t2 * (s * (s + 1.0) * g + (s + 1.0 + z) * pow);
+        pow *= ell2;
+        let term = d[n + 1] * g;
+        sum += term;
+        if term.abs() <= EPS * sum.abs() {
+            break;
+        }
+    }
+    let upper = (ln_pf + sum.ln()).exp();
+    if upper <= 0.5 {
+        return (upper, 1.0 - upper);
+    }
+    // The complement is the small one: sum T^{-(b+2n)} γ(b+2n, z) directly (z is small here).
+    let mut lower = 0.0;
+    let mut pow = 1.0;
+    for n in 0..=TERMS {
+        let s = b + 2.0 * n as f64;
+        let (mut term, mut series, mut k) = (1.0, 1.0, 1.0);
+        while term > series * EPS {
+            term *= z / (s + k);
+            series += term;
+            k += 1.0;
+        }
+        let c = d[n] * pow / s * series;
+        lower += c;
+        if n > 0 && c.abs() <= EPS * lower.abs() {
+            break;
+        }
+        pow *= ell2;
+    }
+    let lower = (ln_pf + lower.ln()).exp();
+    (1.0 - lower, lower)
 }
 
 /// Continued fraction of the incomplete beta function (modified Lentz, Numerical Recipes'
@@ -650,6 +791,13 @@ fn beta_cf(a: f64, b: f64, x: f64) -> f64 {
     h
 }
 
+/// Whether `(a, b)` is in the domain of [`beta_inc_large_a`]: `a >= 15` with `b <= 1` (TOMS
+/// 708's condition), or `b <= 10` with `a >= 100 b` (where its terms still fall by a factor
+/// of ~100 or more each).
+fn large_a_regime(a: f64, b: f64) -> bool {
+    a >= LARGE_A && (b <= 1.0 || (b <= 10.0 && a >= 100.0 * b))
+}
+
 /// `(I_x(a, b), 1 - I_x(a, b))` with `y = 1 - x` given separately; the one on the continued
 /// fraction's side is computed directly, so whichever tail is small keeps relative precision.
 pub(crate) fn beta_inc_pair(a: f64, b: f64, x: f64, y: f64) -> (f64, f64) {
@@ -658,6 +806,13 @@ pub(crate) fn beta_inc_pair(a: f64, b: f64, x: f64, y: f64) -> (f64, f64) {
     }
     if y <= 0.0 {
         return (1.0, 0.0);
+    }
+    if large_a_regime(a, b) && x >= 0.5 {
+        return beta_inc_large_a(a, b, x, y);
+    }
+    if large_a_regime(b, a) && y >= 0.5 {
+        let (j, i) = beta_inc_large_a(b, a, y, x);
+        return (i, j);
     }
     if x < (a + 1.0) / (a + b + 2.0) {
         let w = (ln_beta_prefix(a, b, x, y) + (beta_cf(a, b, x) / a).ln()).exp();
@@ -677,7 +832,13 @@ pub(crate) fn beta_inc_pair(a: f64, b: f64, x: f64, y: f64) -> (f64, f64) {
 /// (golden-tested against mpmath). `a` or `b` not positive and finite, `x` outside [0, 1], or NaN
 /// give NaN. Cost O(1) in the tails, O(√max(a, b)) iterations near the centre.
 pub fn beta_inc_reg(a: f64, b: f64, x: f64) -> f64 {
-    if a.is_nan() || b.is_nan() || x.is_nan() || a <= 0.0 || b <= 0.0 || a.is_infinite() || b.is_infinite()
+    if a.is_nan()
+        || b.is_nan()
+        || x.is_nan()
+        || a <= 0.0
+        || b <= 0.0
+        || a.is_infinite()
+        || b.is_infinite()
     {
         return f64::NAN;
     }
@@ -739,7 +900,11 @@ mod tests {
     use super::*;
 
     fn rel(a: f64, b: f64) -> f64 {
-        if a == b { 0.0 } else { (a - b).abs() / a.abs().max(b.abs()) }
+        if a == b {
+            0.0
+        } else {
+            (a - b).abs() / a.abs().max(b.abs())
+        }
     }
 
     #[test]

@@ -11,7 +11,7 @@
 pub(crate) const KMAX: usize = 16;
 
 /// Points per chunk.
-const LANES: usize = 8;
+const LANES: usize = 16;
 
 /// Chunks per block: lane accumulators are flushed into the totals after each block. The
 /// product of the per-point normalisers (each in `[1, KMAX]`) over one block stays below
@@ -148,7 +148,7 @@ impl LaneAcc {
 
 #[inline(always)]
 fn lane_sum(v: &[f64; LANES]) -> f64 {
-    ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]))
+    v.iter().sum()
 }
 
 /// Per-chunk log-densities, then densities, of every component (written before read).

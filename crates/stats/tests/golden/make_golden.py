@@ -150,6 +150,21 @@ for a in [500.0, 5e4, 5e6]:
         v = betainc_mp(a, a, x)
         add_special("beta_inc_reg", [a, a, x], v, sc.betainc(a, a, x))
 
+# Large a with small b near x = 1: the t distribution with many degrees of freedom
+# (asymptotic-expansion path), and moderate b where the continued fraction is used.
+for a in [15.0, 16.0, 50.0, 1e3, 1e5, 5e6]:
+    for b in [0.1, 0.5, 1.0, 2.0, 5.0]:
+        for x in [0.5, 0.9, 0.99, 1 - 1e-4, 1 - 1e-6, 1 - 1e-8]:
+            if b >= 2.0 and a < 1e3:
+                continue
+            v = betainc_mp(a, b, x)
+            if v < mp.mpf("1e-300"):
+                continue
+            add_special("beta_inc_reg", [a, b, x], v, sc.betainc(a, b, x))
+            w = betainc_mp(b, a, 1 - x)
+            if w >= mp.mpf("1e-300"):
+                add_special("beta_inc_reg", [b, a, 1 - x], w, sc.betainc(b, a, 1 - x))
+
 gam_a = [1e-3, 0.1, 0.5, 0.9, 1.0, 2.5, 10.0, 50.5, 500.0, 1e4]
 gam_fac = [1e-3, 0.1, 0.5, 0.9, 0.99, 1.0, 1.01, 1.1, 2.0, 5.0, 20.0]
 for a in gam_a:
@@ -170,9 +185,9 @@ def t_sf_mp(t, df):
     return half if t > 0 else 1 - half
 
 
-for df in [1.0, 2.0, 3.0, 4.5, 10.0, 30.0, 100.0, 998.0, 1e5, 1e7]:
-    for t in [-50.0, -5.0, -1.0, -0.1, 0.0, 1e-8, 0.1, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0, 30.0,
-              100.0, 1e3, 1e6]:
+for df in [1.0, 2.0, 3.0, 4.5, 10.0, 29.0, 30.0, 31.0, 60.0, 100.0, 998.0, 3e4, 1e5, 1e7]:
+    for t in [-50.0, -5.0, -3.0, -1.0, -0.1, 0.0, 1e-8, 0.01, 0.1, 0.5, 1.0, 2.0, 3.0, 5.0,
+              10.0, 30.0, 40.0, 100.0, 1e3, 1e6]:
         v = t_sf_mp(t, df)
         if v < mp.mpf("1e-300"):
             continue

@@ -29,11 +29,19 @@ fn golden() -> Value {
 }
 
 fn f64s(v: &Value) -> Vec<f64> {
-    v.as_array().expect("an array").iter().map(|x| x.as_f64().expect("a number")).collect()
+    v.as_array()
+        .expect("an array")
+        .iter()
+        .map(|x| x.as_f64().expect("a number"))
+        .collect()
 }
 
 fn matrix(v: &Value) -> Vec<Vec<f64>> {
-    v.as_array().expect("an array of rows").iter().map(f64s).collect()
+    v.as_array()
+        .expect("an array of rows")
+        .iter()
+        .map(f64s)
+        .collect()
 }
 
 fn num(v: &Value) -> f64 {
@@ -76,17 +84,32 @@ fn special_functions_match_mpmath_and_scipy() {
         let truth = num(&p["mp"]);
         let scipy = num(&p["scipy"]);
         if !close(got, truth, SPECIAL_REL) {
-            failures.push(format!("{name}{a:?}: got {got:e}, mpmath {truth:e} (rel {:.1e})", rel_err(got, truth)));
+            failures.push(format!(
+                "{name}{a:?}: got {got:e}, mpmath {truth:e} (rel {:.1e})",
+                rel_err(got, truth)
+            ));
         }
         if close(scipy, truth, 1e-13) && !close(got, scipy, SPECIAL_REL) {
-            failures.push(format!("{name}{a:?}: got {got:e}, scipy {scipy:e} (rel {:.1e})", rel_err(got, scipy)));
+            failures.push(format!(
+                "{name}{a:?}: got {got:e}, scipy {scipy:e} (rel {:.1e})",
+                rel_err(got, scipy)
+            ));
         }
     }
-    assert!(failures.is_empty(), "{} special-function mismatches:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} special-function mismatches:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 fn rel_err(a: f64, b: f64) -> f64 {
-    if a == b { 0.0 } else { (a - b).abs() / a.abs().max(b.abs()) }
+    if a == b {
+        0.0
+    } else {
+        (a - b).abs() / a.abs().max(b.abs())
+    }
 }
 
 /// Runs one statistic on the case's arguments; `Err` carries the error's text.
@@ -101,16 +124,22 @@ fn run(case: &Value) -> Result<Value, String> {
         "skewness" => scalar(describe::skewness(&f64s(&args["x"]))),
         "excess_kurtosis" => scalar(describe::excess_kurtosis(&f64s(&args["x"]))),
         "bimodality_coefficient" => scalar(describe::bimodality_coefficient(&f64s(&args["x"]))),
-        "pearson" => correlation::pearson(&f64s(&args["x"]), &f64s(&args["y"])).map(|c| to_value(serde_json::to_value(c))),
-        "spearman" => correlation::spearman(&f64s(&args["x"]), &f64s(&args["y"])).map(|c| to_value(serde_json::to_value(c))),
+        "pearson" => correlation::pearson(&f64s(&args["x"]), &f64s(&args["y"]))
+            .map(|c| to_value(serde_json::to_value(c))),
+        "spearman" => correlation::spearman(&f64s(&args["x"]), &f64s(&args["y"]))
+            .map(|c| to_value(serde_json::to_value(c))),
         "point_biserial" => {
-            let flags: Vec<bool> =
-                args["flags"].as_array().expect("flags").iter().map(|f| f.as_bool().expect("a bool")).collect();
-            correlation::point_biserial(&flags, &f64s(&args["y"])).map(|c| to_value(serde_json::to_value(c)))
+            let flags: Vec<bool> = args["flags"]
+                .as_array()
+                .expect("flags")
+                .iter()
+                .map(|f| f.as_bool().expect("a bool"))
+                .collect();
+            correlation::point_biserial(&flags, &f64s(&args["y"]))
+                .map(|c| to_value(serde_json::to_value(c)))
         }
-        "mann_whitney_u" => {
-            rank::mann_whitney_u(&f64s(&args["x"]), &f64s(&args["y"])).map(|m| to_value(serde_json::to_value(m)))
-        }
+        "mann_whitney_u" => rank::mann_whitney_u(&f64s(&args["x"]), &f64s(&args["y"]))
+            .map(|m| to_value(serde_json::to_value(m))),
         "cohens_d" => scalar(effect::cohens_d(&f64s(&args["x"]), &f64s(&args["y"]))),
         "two_sample_power" => scalar(effect::two_sample_power(
             num(&args["d"]),
@@ -118,9 +147,8 @@ fn run(case: &Value) -> Result<Value, String> {
             count(&args["n_y"]),
             num(&args["alpha"]),
         )),
-        "chi2_contingency" => {
-            contingency::chi2_contingency(&matrix(&args["table"])).map(|c| to_value(serde_json::to_value(c)))
-        }
+        "chi2_contingency" => contingency::chi2_contingency(&matrix(&args["table"]))
+            .map(|c| to_value(serde_json::to_value(c))),
         "icc" => icc::icc(&matrix(&args["matrix"])).map(|c| to_value(serde_json::to_value(c))),
         other => panic!("unknown statistic {other} in stats.json"),
     };
@@ -134,7 +162,11 @@ fn statistics_match_scipy() {
     assert!(cases.len() > 100, "too few statistic cases");
     let mut failures = Vec::new();
     for case in cases {
-        let label = format!("{} / {}", case["fn"].as_str().unwrap_or("?"), case["name"].as_str().unwrap_or("?"));
+        let label = format!(
+            "{} / {}",
+            case["fn"].as_str().unwrap_or("?"),
+            case["name"].as_str().unwrap_or("?")
+        );
         let got = run(case);
         if case["error"].as_bool() == Some(true) {
             if let Ok(v) = got {
@@ -162,5 +194,10 @@ fn statistics_match_scipy() {
             }
         }
     }
-    assert!(failures.is_empty(), "{} mismatches against SciPy:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} mismatches against SciPy:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
