@@ -24,7 +24,7 @@ use fogline_stats::gmm;
 /// Timed runs after the warm-up.
 const RUNS: usize = 5;
 /// Runs of each breakdown measurement.
-const BREAKDOWN_RUNS: usize = 3;
+const BREAKDOWN_RUNS: usize = 5;
 /// Clips of the paper-sized corpus (× 8 conditions = 15,968 pairs).
 const PAPER_CLIPS: usize = 1996;
 /// Clips of the large corpus (× 8 = 10,000,000 pairs).
@@ -53,10 +53,17 @@ fn run_once(path: &Path, p: &EnvelopeParams) -> (f64, f64, PairTable) {
     (read, an, table)
 }
 
-fn median_of(runs: usize, mut f: impl FnMut() -> f64) -> f64 {
-    let mut v: Vec<f64> = (0..runs).map(|_| f()).collect();
-    median(&mut v)
-}
+/// The phases the Python peer reports, in the order it runs them.
+const PEER_PHASES: [&str; 8] = [
+    "read",
+    "dose_thresholds",
+    "bootstrap",
+    "gmm_bic",
+    "gmm_cv",
+    "gmm_per_scenario",
+    "bands",
+    "statistics",
+];
 
 /// What the Python peer reported.
 struct PeerResult {
@@ -96,10 +103,13 @@ fn run_peer(csv: &Path, p: &EnvelopeParams) -> Result<PeerResult, String> {
     let v: serde_json::Value =
         serde_json::from_str(line).map_err(|e| format!("cannot parse the peer's report {line:?}: {e}"))?;
     let seconds = v["seconds"].as_f64().ok_or("the peer's report has no \"seconds\"")?;
-    let phases = v["phases"]
+    let mut phases: Vec<(String, f64)> = v["phases"]
         .as_object()
         .map(|m| m.iter().filter_map(|(k, x)| Some((k.clone(), x.as_f64()?))).collect())
         .unwrap_or_default();
+    // The peer's order (serde_json's map is sorted by key); unknown phases last.
+    let pos = |k: &str| PEER_PHASES.iter().position(|p| *p == k).unwrap_or(PEER_PHASES.len());
+    phases.sort_by_key(|(k, _)| pos(k));
     Ok(PeerResult { seconds, wall_secs, phases })
 }
 
@@ -147,13 +157,9 @@ fn paper_sized(dir: &Path) {
     let read_med = median(&mut read);
     let an_med = median(&mut an);
 
-    // Breakdown of analyze, from public entry points (median of BREAKDOWN_RUNS each).
+    // Breakdown of analyze from public entry points. The variants are interleaved and the
+    // minimum of BREAKDOWN_RUNS is kept: differences of minima are robust to load noise.
     let no_boot = EnvelopeParams { bootstrap: 0, ..p.clone() };
-    let an_no_boot = median_of(BREAKDOWN_RUNS, || {
-        let t = Instant::now();
-        std::hint::black_box(analyze(&table, &no_boot).expect("analyses"));
-        secs(t)
-    });
     let l2: Vec<f64> = (0..table.len()).filter(|&r| table.changed[r]).map(|r| table.l2_m[r]).collect();
     let sel = gmm::SelectParams {
         k_max: p.k_max,
@@ -163,17 +169,28 @@ fn paper_sized(dir: &Path) {
         seed: p.seed,
         ..gmm::SelectParams::default()
     };
-    let select_secs = median_of(BREAKDOWN_RUNS, || {
+    let sel_no_cv = gmm::SelectParams { cv_folds: 0, ..sel.clone() };
+    let timed = |f: &dyn Fn()| {
         let t = Instant::now();
-        std::hint::black_box(gmm::select_k(&l2, &sel).expect("selects"));
+        f();
         secs(t)
-    });
-    let cv_secs = select_secs
-        - median_of(BREAKDOWN_RUNS, || {
-            let t = Instant::now();
-            std::hint::black_box(gmm::select_k(&l2, &gmm::SelectParams { cv_folds: 0, ..sel.clone() }).expect("selects"));
-            secs(t)
-        });
+    };
+    let (mut b_full, mut b_no_boot, mut b_sel, mut b_sel_no_cv) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..BREAKDOWN_RUNS {
+        b_full.push(timed(&|| {
+            std::hint::black_box(analyze(&table, &p).expect("analyses"));
+        }));
+        b_no_boot.push(timed(&|| {
+            std::hint::black_box(analyze(&table, &no_boot).expect("analyses"));
+        }));
+        b_sel.push(timed(&|| {
+            std::hint::black_box(gmm::select_k(&l2, &sel).expect("selects"));
+        }));
+        b_sel_no_cv.push(timed(&|| {
+            std::hint::black_box(gmm::select_k(&l2, &sel_no_cv).expect("selects"));
+        }));
+    }
+    let (an_min, an_no_boot, select_secs, select_no_cv) = (min(&b_full), min(&b_no_boot), min(&b_sel), min(&b_sel_no_cv));
 
     println!();
     println!("rust      fogline read_pairs + analyze (warm-up + {RUNS} runs)");
@@ -181,14 +198,20 @@ fn paper_sized(dir: &Path) {
     println!("  {:<44} {:>7.1} ms {:>7.1} ms", "total", total_med * 1e3, total_min * 1e3);
     println!("  {:<44} {:>7.1} ms", "read_pairs (CSV + text features)", read_med * 1e3);
     println!("  {:<44} {:>7.1} ms", "analyze", an_med * 1e3);
-    println!("  breakdown of analyze (median of {BREAKDOWN_RUNS}; differences are approximate)");
-    println!("  {:<44} {:>7.1} ms", "  bootstrap (analyze − analyze w/o bootstrap)", (an_med - an_no_boot) * 1e3);
+    println!("  breakdown of analyze (min of {BREAKDOWN_RUNS} interleaved runs; differences are approximate)");
+    println!("  {:<44} {:>7.1} ms", "  analyze (min)", an_min * 1e3);
+    println!("  {:<44} {:>7.1} ms", "  bootstrap (analyze − analyze w/o bootstrap)", (an_min - an_no_boot) * 1e3);
     println!(
         "  {:<44} {:>7.1} ms",
         format!("  gmm::select_k on {} changed pairs", thousands(l2.len())),
         select_secs * 1e3
     );
-    println!("  {:<44} {:>7.1} ms", "    of which 5-fold CV", cv_secs * 1e3);
+    println!(
+        "  {:<44} {:>7.1} ms",
+        format!("    BIC study ({} restarts × k 1..{})", p.restarts, p.k_max),
+        select_no_cv * 1e3
+    );
+    println!("  {:<44} {:>7.1} ms", "    5-fold CV (difference)", (select_secs - select_no_cv) * 1e3);
     println!(
         "  {:<44} {:>7.1} ms",
         "  rest (per-scenario GMMs, stats, tables)",

@@ -10,7 +10,9 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use fogline_envelope::{Bands, Envelope, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule};
+use fogline_envelope::{
+    Bands, Envelope, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule,
+};
 
 #[derive(Parser)]
 #[command(
@@ -36,8 +38,10 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Analyse a pairs table: per-scenario thresholds, severity bands, the 2-D ODD entry.
-    #[command(after_help = "Examples:\n  fogline envelope pairs.csv --out envelope/\n  fogline envelope pairs.jsonl --out out/ --rule max-passing --bootstrap 2000 --seed 7")]
-    Envelope(EnvelopeArgs),
+    #[command(
+        after_help = "Examples:\n  fogline envelope pairs.csv --out envelope/\n  fogline envelope pairs.jsonl --out out/ --rule max-passing --bootstrap 2000 --seed 7"
+    )]
+    Envelope(Box<EnvelopeArgs>),
     /// Run the whole pipeline offline on built-in data and write a report.
     #[command(after_help = "Example:\n  fogline demo --out fogline-demo")]
     Demo(DemoArgs),
@@ -101,7 +105,10 @@ struct AnalysisArgs {
     #[arg(long, default_value_t = 30)]
     min_clips: usize,
     /// How L2 was aggregated upstream (recorded in the output).
-    #[arg(long, default_value = "euclidean norm of the stacked xy waypoint differences (m)")]
+    #[arg(
+        long,
+        default_value = "euclidean norm of the stacked xy waypoint differences (m)"
+    )]
     l2: String,
     /// Family whose threshold forms the ODD entry.
     #[arg(long, default_value = "gaussian_noise")]
@@ -181,19 +188,19 @@ fn run(cli: Cli) -> Result<ExitCode> {
             .context("cannot start the worker threads")?;
     }
     match cli.command {
-        Command::Envelope(a) => envelope(a),
+        Command::Envelope(a) => envelope(*a),
         Command::Demo(a) => demo(a),
     }
 }
 
 fn params(a: &AnalysisArgs) -> Result<EnvelopeParams> {
-    let bands = match a.bands.as_str() {
-        "auto" => Bands::Auto,
-        k => Bands::Fixed(
-            k.parse()
-                .with_context(|| format!("--bands: expected `auto` or a whole number, got {k:?}"))?,
-        ),
-    };
+    let bands =
+        match a.bands.as_str() {
+            "auto" => Bands::Auto,
+            k => Bands::Fixed(k.parse().with_context(|| {
+                format!("--bands: expected `auto` or a whole number, got {k:?}")
+            })?),
+        };
     let p = EnvelopeParams {
         budgets: a.budgets.clone(),
         headline_budget: a.headline,
@@ -245,13 +252,13 @@ fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
         table.clip_ids.len(),
         t0.elapsed().as_secs_f64()
     );
-    if let TaxonomyChoice::Given(tx) = &p.taxonomy {
-        if tx.classes.is_empty() {
-            p.taxonomy = TaxonomyChoice::Given(fogline_types::Taxonomy::from_labels(
-                table.scenarios.iter().map(String::as_str),
-                &tx.other,
-            ));
-        }
+    if let TaxonomyChoice::Given(tx) = &p.taxonomy
+        && tx.classes.is_empty()
+    {
+        p.taxonomy = TaxonomyChoice::Given(fogline_types::Taxonomy::from_labels(
+            table.scenarios.iter().map(String::as_str),
+            &tx.other,
+        ));
     }
     let t1 = std::time::Instant::now();
     let env = fogline_envelope::analyze(&table, &p)?;
@@ -305,7 +312,8 @@ fn write_outputs(env: &Envelope, dir: &Path) -> Result<Written> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let json = serde_json::to_vec_pretty(env).context("cannot serialise the envelope")?;
     let md = fogline_envelope::markdown::render(env);
-    let odd = serde_json::to_vec_pretty(&odd_spec(env)).context("cannot serialise the ODD specification")?;
+    let odd = serde_json::to_vec_pretty(&odd_spec(env))
+        .context("cannot serialise the ODD specification")?;
     let w = Written {
         json: dir.join("envelope.json"),
         markdown: dir.join("envelope.md"),
@@ -350,20 +358,28 @@ fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
         return Ok(());
     }
-    let agg = env
-        .thresholds
-        .iter()
-        .find(|t| t.scenario == fogline_envelope::model::AGG_ALL && env.odd.first().is_some_and(|o| o.axis == t.axis) && t.budget == env.parameters.headline_budget);
+    let agg = env.thresholds.iter().find(|t| {
+        t.scenario == fogline_envelope::model::AGG_ALL
+            && env.odd.first().is_some_and(|o| o.axis == t.axis)
+            && t.budget == env.parameters.headline_budget
+    });
     writeln!(
         out,
         "{} pairs, {} clips, {} changed CoC; {} severity bands; aggregate threshold ≤ {}",
         env.corpus.n_pairs,
         env.corpus.n_clips,
         env.corpus.n_changed,
-        env.severity.chosen_k.map_or("undefined".into(), |k| k.to_string()),
-        agg.and_then(|t| t.sigma_star).map_or("none".into(), |v| v.to_string())
+        env.severity
+            .chosen_k
+            .map_or("undefined".into(), |k| k.to_string()),
+        agg.and_then(|t| t.sigma_star)
+            .map_or("none".into(), |v| v.to_string())
     )?;
-    writeln!(out, "{:<16} {:>6} {:>8} {:>14} {:>8}  {}", "scenario", "clips", "sigma*", "95% CI", "P(high)", "quadrant")?;
+    writeln!(
+        out,
+        "{:<16} {:>6} {:>8} {:>14} {:>8}  quadrant",
+        "scenario", "clips", "sigma*", "95% CI", "P(high)"
+    )?;
     for o in &env.odd {
         let lvl = |x: Option<f64>| x.map_or("none".into(), |v| v.to_string());
         writeln!(
@@ -371,9 +387,15 @@ fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {
             "{:<16} {:>6} {:>8} {:>14} {:>8}  {}{}{}",
             o.scenario,
             o.n_clips,
-            format!("{}{}", lvl(o.sigma_star), if o.right_censored { "+" } else { "" }),
-            o.ci95.map_or("-".into(), |[a, b]| format!("[{}, {}]", lvl(a), lvl(b))),
-            o.p_high.map_or("-".into(), |v| format!("{:.1}%", 100.0 * v)),
+            format!(
+                "{}{}",
+                lvl(o.sigma_star),
+                if o.right_censored { "+" } else { "" }
+            ),
+            o.ci95
+                .map_or("-".into(), |[a, b]| format!("[{}, {}]", lvl(a), lvl(b))),
+            o.p_high
+                .map_or("-".into(), |v| format!("{:.1}%", 100.0 * v)),
             o.quadrant,
             if o.pilot { " (pilot)" } else { "" },
             match o.accepted {
@@ -393,7 +415,8 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
     if a.clips == 0 {
         bail!("--clips must be at least 1");
     }
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
     log::info!(
         "demo: the synthetic world, reference planner and campaign runner are not built yet; \
          this run analyses a synthetic pairs corpus of {} clips (seed {})",
@@ -406,13 +429,24 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
     };
     let pairs = a.out.join("pairs.csv");
     let mut csv = Vec::new();
-    fogline_envelope::synthetic::write_csv(&sp, &mut csv).context("cannot render the synthetic corpus")?;
+    fogline_envelope::synthetic::write_csv(&sp, &mut csv)
+        .context("cannot render the synthetic corpus")?;
     write_atomic(&pairs, &csv)?;
     log::info!("wrote {}", pairs.display());
     let table = fogline_envelope::read_pairs(&pairs, &ReadOptions::default())?;
     let t = std::time::Instant::now();
-    let env = fogline_envelope::analyze(&table, &EnvelopeParams { seed: a.seed, ..EnvelopeParams::default() })?;
-    log::info!("analysed {} pairs in {:.2} s", table.len(), t.elapsed().as_secs_f64());
+    let env = fogline_envelope::analyze(
+        &table,
+        &EnvelopeParams {
+            seed: a.seed,
+            ..EnvelopeParams::default()
+        },
+    )?;
+    log::info!(
+        "analysed {} pairs in {:.2} s",
+        table.len(),
+        t.elapsed().as_secs_f64()
+    );
     let w = write_outputs(&env, &a.out)?;
     print_summary(&env, &w, false)?;
     Ok(ExitCode::SUCCESS)

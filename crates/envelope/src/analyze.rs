@@ -30,7 +30,8 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             if t.scenarios.iter().any(|s| paper.is_classified(s)) {
                 paper
             } else {
-                let tx = Taxonomy::from_labels(t.scenarios.iter().map(String::as_str), &paper.other);
+                let tx =
+                    Taxonomy::from_labels(t.scenarios.iter().map(String::as_str), &paper.other);
                 notes.push(format!(
                     "no scenario label is one of the paper's seven classes: using the {} labels found in the data as the taxonomy",
                     tx.classes.len()
@@ -40,7 +41,11 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         }
     };
     let n_strata = t.scenarios.len();
-    let classified_stratum: Vec<bool> = t.scenarios.iter().map(|s| taxonomy.is_classified(s)).collect();
+    let classified_stratum: Vec<bool> = t
+        .scenarios
+        .iter()
+        .map(|s| taxonomy.is_classified(s))
+        .collect();
     let mut unclassified_labels: Vec<String> = t
         .scenarios
         .iter()
@@ -63,14 +68,21 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
     let classified: Vec<(String, usize)> = taxonomy
         .classes
         .iter()
-        .filter_map(|c| t.scenarios.iter().position(|s| s == c).map(|i| (c.clone(), i)))
+        .filter_map(|c| {
+            t.scenarios
+                .iter()
+                .position(|s| s == c)
+                .map(|i| (c.clone(), i))
+        })
         .collect();
     let mut groups = Groups {
         names: classified.iter().map(|(n, _)| n.clone()).collect(),
         strata: classified.iter().map(|(_, s)| vec![*s]).collect(),
     };
     groups.names.push(AGG_CLASSIFIED.into());
-    groups.strata.push(classified.iter().map(|(_, s)| *s).collect());
+    groups
+        .strata
+        .push(classified.iter().map(|(_, s)| *s).collect());
     groups.names.push(AGG_ALL.into());
     groups.strata.push((0..n_strata).collect());
     let n_groups = groups.names.len();
@@ -97,7 +109,8 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
     if axes.is_empty() {
         return Err(EnvelopeError::InvalidParam {
             name: "pairs",
-            reason: "no perturbed condition (every condition is at its family's identity level)".into(),
+            reason: "no perturbed condition (every condition is at its family's identity level)"
+                .into(),
         });
     }
     let slots = ClipSlots::build(t, &axes, &slot_of_cond);
@@ -120,10 +133,21 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
     let means = |g: usize| -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let s = &group_sums[g];
         let cnt = s[2 * ns..3 * ns].to_vec();
-        let mc = (0..ns).map(|i| if cnt[i] > 0.0 { s[i] / cnt[i] } else { 0.0 }).collect();
-        let ma = (0..ns).map(|i| if cnt[i] > 0.0 { s[ns + i] / cnt[i] } else { 0.0 }).collect();
+        let mc = (0..ns)
+            .map(|i| if cnt[i] > 0.0 { s[i] / cnt[i] } else { 0.0 })
+            .collect();
+        let ma = (0..ns)
+            .map(|i| {
+                if cnt[i] > 0.0 {
+                    s[ns + i] / cnt[i]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         (mc, ma, cnt)
     };
+    let clock = std::time::Instant::now();
     let boot = (p.bootstrap > 0).then(|| {
         threshold::bootstrap(
             &slots,
@@ -137,6 +161,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         )
     });
 
+    log::debug!("bootstrap: {:.3} s", clock.elapsed().as_secs_f64());
     let budget_key = |b: f64| format!("{b}");
     let mut dose_response = Vec::new();
     for g in 0..n_groups {
@@ -190,14 +215,19 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
                 let (ci95, share) = match &boot {
                     Some(bt) => {
                         let counts = &bt.counts[g][ai][bi];
-                        let rank_value = |r: usize| if r == 0 { None } else { Some(a.levels[r - 1]) };
+                        let rank_value =
+                            |r: usize| if r == 0 { None } else { Some(a.levels[r - 1]) };
                         let ci = [
                             threshold::ordinal_quantile(counts, 0.025).and_then(rank_value),
                             threshold::ordinal_quantile(counts, 0.975).and_then(rank_value),
                         ];
                         let mut share = BTreeMap::new();
                         for (r, &c) in counts.iter().enumerate() {
-                            let key = if r == 0 { "none".to_string() } else { format!("{}", a.levels[r - 1]) };
+                            let key = if r == 0 {
+                                "none".to_string()
+                            } else {
+                                format!("{}", a.levels[r - 1])
+                            };
                             share.insert(key, c as f64 / bt.n as f64);
                         }
                         (Some(ci), share)
@@ -238,7 +268,12 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         scen_clean[s] += t.ade_clean_m[r];
     }
     let mut order: Vec<usize> = (0..n_strata).collect();
-    order.sort_by_key(|&s| (taxonomy.rank(&t.scenarios[s]).unwrap_or(usize::MAX), t.scenarios[s].clone()));
+    order.sort_by_key(|&s| {
+        (
+            taxonomy.rank(&t.scenarios[s]).unwrap_or(usize::MAX),
+            t.scenarios[s].clone(),
+        )
+    });
     let scenarios: Vec<ScenarioSummary> = order
         .iter()
         .map(|&s| ScenarioSummary {
@@ -259,9 +294,13 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         let s = t.row_scenario(r) as usize;
         let c = t.condition[r] as usize;
         let d = t.ade_attacked_m[r] - t.ade_clean_m[r];
-        for row in [Some(s), classified_stratum[s].then_some(n_strata), Some(n_strata + 1)]
-            .into_iter()
-            .flatten()
+        for row in [
+            Some(s),
+            classified_stratum[s].then_some(n_strata),
+            Some(n_strata + 1),
+        ]
+        .into_iter()
+        .flatten()
         {
             let e = &mut cell[row * n_cond + c];
             e.0 += 1;
@@ -274,7 +313,11 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         .map(|&s| t.scenarios[s].clone())
         .chain([AGG_CLASSIFIED.to_string(), AGG_ALL.to_string()])
         .collect();
-    let row_index: Vec<usize> = order.iter().copied().chain([n_strata, n_strata + 1]).collect();
+    let row_index: Vec<usize> = order
+        .iter()
+        .copied()
+        .chain([n_strata, n_strata + 1])
+        .collect();
     for (name, &ri) in row_names.iter().zip(&row_index) {
         for c in 0..n_cond {
             let (n, sum) = cell[ri * n_cond + c];
@@ -300,8 +343,12 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         seed: p.seed,
         ..gmm::SelectParams::default()
     };
+    let clock = std::time::Instant::now();
     let selection = if l2_changed.len() < 2 {
-        Err(format!("{} changed pairs; a mixture needs at least 2", l2_changed.len()))
+        Err(format!(
+            "{} changed pairs; a mixture needs at least 2",
+            l2_changed.len()
+        ))
     } else {
         let r = match p.bands {
             Bands::Auto => gmm::select_k(&l2_changed, &sel_params),
@@ -320,6 +367,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
                     n_changed: l2_changed.len(),
                     bands_mode: bands_mode(p),
                     bic: Vec::new(),
+                    chosen_per_seed: Vec::new(),
                     chosen_k: None,
                     cv_loglik: Vec::new(),
                     bands: Vec::new(),
@@ -331,6 +379,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             )
         }
     };
+    log::debug!("severity bands: {:.3} s", clock.elapsed().as_secs_f64());
     let k = severity.bands.len();
     let n_high_bands = if k >= 2 { p.high_bands.min(k - 1) } else { 0 };
     if k >= 2 && p.high_bands > k - 1 {
@@ -360,7 +409,10 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         share: (n > 0 && n_high_bands > 0).then(|| h as f64 / n as f64),
         mean_l2_changed_m: (n > 0).then(|| sum / n as f64),
     };
-    let stratum_of_changed: Vec<usize> = changed_rows.iter().map(|&r| t.row_scenario(r) as usize).collect();
+    let stratum_of_changed: Vec<usize> = changed_rows
+        .iter()
+        .map(|&r| t.row_scenario(r) as usize)
+        .collect();
     let mut by_scenario = Vec::new();
     for g in 0..n_groups {
         let members: Vec<bool> = {
@@ -370,12 +422,16 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             }
             m
         };
-        let stats = high_row(&mut (0..changed_rows.len()).filter(|&ci| members[stratum_of_changed[ci]]));
+        let stats =
+            high_row(&mut (0..changed_rows.len()).filter(|&ci| members[stratum_of_changed[ci]]));
         by_scenario.push(mk_high(groups.names[g].clone(), stats));
     }
     let by_condition: Vec<HighRow> = (0..n_cond)
         .map(|c| {
-            let stats = high_row(&mut (0..changed_rows.len()).filter(|&ci| t.condition[changed_rows[ci]] as usize == c));
+            let stats = high_row(
+                &mut (0..changed_rows.len())
+                    .filter(|&ci| t.condition[changed_rows[ci]] as usize == c),
+            );
             mk_high(t.conditions[c].name.clone(), stats)
         })
         .collect();
@@ -398,7 +454,9 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         .iter()
         .map(|row| {
             let n: usize = row.iter().sum();
-            row.iter().map(|&c| if n > 0 { c as f64 / n as f64 } else { 0.0 }).collect()
+            row.iter()
+                .map(|&c| if n > 0 { c as f64 / n as f64 } else { 0.0 })
+                .collect()
         })
         .collect();
     let joint = Joint {
@@ -409,6 +467,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
     };
 
     // per-scenario mixtures
+    let clock = std::time::Instant::now();
     let mut severity = severity;
     if severity.defined {
         for (name, s) in &classified {
@@ -428,14 +487,22 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
                     n_changed: x.len(),
                     bic: Vec::new(),
                     chosen_k: None,
-                    reason: Some(format!("{} changed pairs; a mixture needs at least 2", x.len())),
+                    reason: Some(format!(
+                        "{} changed pairs; a mixture needs at least 2",
+                        x.len()
+                    )),
                 }
             } else {
                 match gmm::select_k(&x, &sp) {
                     Ok(sel) => ScenarioMixture {
                         scenario: name.clone(),
                         n_changed: x.len(),
-                        bic: sel.k_values.iter().copied().zip(sel.bic_min.iter().copied()).collect(),
+                        bic: sel
+                            .k_values
+                            .iter()
+                            .copied()
+                            .zip(sel.bic_min.iter().copied())
+                            .collect(),
                         chosen_k: Some(sel.chosen_k),
                         reason: None,
                     },
@@ -452,9 +519,16 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         }
     }
 
+    log::debug!(
+        "per-scenario mixtures: {:.3} s",
+        clock.elapsed().as_secs_f64()
+    );
     // ---- statistics -------------------------------------------------------------------------
-    let statistics = crate::statistics::compute(t, p, &changed_rows, &l2_changed, &joint, &slot_of_cond);
+    let clock = std::time::Instant::now();
+    let statistics =
+        crate::statistics::compute(t, p, &changed_rows, &l2_changed, &joint, &slot_of_cond);
 
+    log::debug!("statistics: {:.3} s", clock.elapsed().as_secs_f64());
     // ---- transitions ------------------------------------------------------------------------
     let labels = t.action_labels.clone();
     let na = labels.len();
@@ -543,7 +617,10 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
                 (
                     Some(ok),
                     Some(if ok {
-                        format!("σ_op {} ≤ σ* and P(high) ≤ π* {pi}", sigma_op.map_or("-".into(), |v| v.to_string()))
+                        format!(
+                            "σ_op {} ≤ σ* and P(high) ≤ π* {pi}",
+                            sigma_op.map_or("-".into(), |v| v.to_string())
+                        )
                     } else {
                         why.join("; ")
                     }),
@@ -587,7 +664,14 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             }
         })
         .collect();
-    let assurance = crate::assurance::build(p, &odd, &severity, &budget_sensitivity, &axes[odd_axis].axis, sigma_op);
+    let assurance = crate::assurance::build(
+        p,
+        &odd,
+        &severity,
+        &budget_sensitivity,
+        &axes[odd_axis].axis,
+        sigma_op,
+    );
 
     let conventions = crate::conventions(p);
     Ok(Envelope {
@@ -695,6 +779,7 @@ fn severity_from(sel: &gmm::Selection, x: &[f64], p: &EnvelopeParams) -> (Severi
             n_changed: x.len(),
             bands_mode: bands_mode(p),
             bic,
+            chosen_per_seed: sel.chosen_per_restart.clone(),
             chosen_k: Some(sel.chosen_k),
             cv_loglik,
             bands,
@@ -711,13 +796,22 @@ fn severity_from(sel: &gmm::Selection, x: &[f64], p: &EnvelopeParams) -> (Severi
 fn boundaries(m: &gmm::Gmm1d, x: &[f64]) -> Vec<f64> {
     let (lo, hi) = x
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-    if !(lo < hi) {
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if lo >= hi || !lo.is_finite() || !hi.is_finite() {
         return Vec::new();
     }
     let n_grid = 2048;
-    let grid: Vec<f64> = (0..=n_grid).map(|i| lo + (hi - lo) * i as f64 / n_grid as f64).collect();
-    let predict1 = |v: f64| m.predict(&[v]).ok().and_then(|b| b.first().copied()).unwrap_or(0);
+    let grid: Vec<f64> = (0..=n_grid)
+        .map(|i| lo + (hi - lo) * i as f64 / n_grid as f64)
+        .collect();
+    let predict1 = |v: f64| {
+        m.predict(&[v])
+            .ok()
+            .and_then(|b| b.first().copied())
+            .unwrap_or(0)
+    };
     let bands: Vec<usize> = grid.iter().map(|&g| predict1(g)).collect();
     let mut out = Vec::new();
     for i in 1..grid.len() {

@@ -19,14 +19,18 @@ pub(crate) fn build(
     let e1 = odd
         .iter()
         .map(|e| {
-            let ci = e
-                .ci95
-                .map_or("no bootstrap".into(), |[lo, hi]| format!("95% CI [{}, {}]", lvl(lo), lvl(hi)));
+            let ci = e.ci95.map_or("no bootstrap".into(), |[lo, hi]| {
+                format!("95% CI [{}, {}]", lvl(lo), lvl(hi))
+            });
             format!(
                 "{} ≤ {}{}{} ({ci})",
                 e.scenario,
                 lvl(e.sigma_star),
-                if e.right_censored { " (right-censored)" } else { "" },
+                if e.right_censored {
+                    " (right-censored)"
+                } else {
+                    ""
+                },
                 if e.pilot { " [pilot]" } else { "" }
             )
         })
@@ -35,7 +39,14 @@ pub(crate) fn build(
     let e2 = if severity.defined {
         let per = odd
             .iter()
-            .map(|e| format!("{} {}", e.scenario, e.p_high.map_or("undefined".into(), |v| format!("{:.1}%", 100.0 * v))))
+            .map(|e| {
+                format!(
+                    "{} {}",
+                    e.scenario,
+                    e.p_high
+                        .map_or("undefined".into(), |v| format!("{:.1}%", 100.0 * v))
+                )
+            })
             .collect::<Vec<_>>()
             .join("; ");
         format!(
@@ -46,27 +57,56 @@ pub(crate) fn build(
     } else {
         format!(
             "undefined: {}",
-            severity.reason.clone().unwrap_or_else(|| "no severity bands".into())
+            severity
+                .reason
+                .clone()
+                .unwrap_or_else(|| "no severity bands".into())
         )
     };
     let e3 = match p.pi_star {
-        None => "acceptance not evaluated: no residual-risk budget π* given (--pi-star)".to_string(),
+        None => {
+            "acceptance not evaluated: no residual-risk budget π* given (--pi-star)".to_string()
+        }
         Some(pi) => {
-            let acc: Vec<&str> = odd.iter().filter(|e| e.accepted == Some(true)).map(|e| e.scenario.as_str()).collect();
-            let rej: Vec<&str> = odd.iter().filter(|e| e.accepted == Some(false)).map(|e| e.scenario.as_str()).collect();
+            let acc: Vec<&str> = odd
+                .iter()
+                .filter(|e| e.accepted == Some(true))
+                .map(|e| e.scenario.as_str())
+                .collect();
+            let rej: Vec<&str> = odd
+                .iter()
+                .filter(|e| e.accepted == Some(false))
+                .map(|e| e.scenario.as_str())
+                .collect();
             format!(
                 "s passes iff σ_op ≤ σ*(s) and P(high | s) ≤ π* = {pi} at σ_op = {}: accepted {}; rejected {}",
                 lvl(sigma_op),
-                if acc.is_empty() { "none".into() } else { acc.join(", ") },
-                if rej.is_empty() { "none".into() } else { rej.join(", ") }
+                if acc.is_empty() {
+                    "none".into()
+                } else {
+                    acc.join(", ")
+                },
+                if rej.is_empty() {
+                    "none".into()
+                } else {
+                    rej.join(", ")
+                }
             )
         }
     };
-    let unstable: Vec<&str> = sensitivity.iter().filter(|s| !s.stable).map(|s| s.scenario.as_str()).collect();
+    let unstable: Vec<&str> = sensitivity
+        .iter()
+        .filter(|s| !s.stable)
+        .map(|s| s.scenario.as_str())
+        .collect();
     let a1 = format!(
         "the {:.0}% ADE budget is {} under ±{:.0}% sensitivity{}",
         100.0 * b,
-        if unstable.is_empty() { "stable" } else { "not stable" },
+        if unstable.is_empty() {
+            "stable"
+        } else {
+            "not stable"
+        },
         100.0 * p.budget_sensitivity,
         if unstable.is_empty() {
             String::new()

@@ -60,7 +60,9 @@ pub enum EnvelopeError {
         expected: String,
     },
     /// The same (clip, condition) appears twice.
-    #[error("{path}: row {row} repeats clip {clip_id:?} under condition {condition:?} (first at row {first_row})")]
+    #[error(
+        "{path}: row {row} repeats clip {clip_id:?} under condition {condition:?} (first at row {first_row})"
+    )]
     DuplicatePair {
         /// The file.
         path: PathBuf,
@@ -74,7 +76,9 @@ pub enum EnvelopeError {
         condition: String,
     },
     /// A clip carries two scenario labels.
-    #[error("{path}: row {row}: clip {clip_id:?} has scenario {second:?} but earlier rows say {first:?}")]
+    #[error(
+        "{path}: row {row}: clip {clip_id:?} has scenario {second:?} but earlier rows say {first:?}"
+    )]
     ScenarioConflict {
         /// The file.
         path: PathBuf,

@@ -193,7 +193,12 @@ pub fn read_pairs(path: &Path, opts: &ReadOptions) -> Result<PairTable> {
 }
 
 /// Reads a pairs table from bytes in memory (`name` is used in messages).
-pub fn read_pairs_bytes(name: &str, format: Format, bytes: &[u8], opts: &ReadOptions) -> Result<PairTable> {
+pub fn read_pairs_bytes(
+    name: &str,
+    format: Format,
+    bytes: &[u8],
+    opts: &ReadOptions,
+) -> Result<PairTable> {
     let path = Path::new(name);
     let mut b = Builder::new(path, opts);
     match format {
@@ -232,7 +237,11 @@ pub struct RowRef<'a> {
 
 /// Builds a table from rows in memory, with the same validation as the file readers
 /// (`name` is used in messages; rows are numbered from 1).
-pub fn table_from_rows<'a>(name: &str, opts: &ReadOptions, rows: impl IntoIterator<Item = RowRef<'a>>) -> Result<PairTable> {
+pub fn table_from_rows<'a>(
+    name: &str,
+    opts: &ReadOptions,
+    rows: impl IntoIterator<Item = RowRef<'a>>,
+) -> Result<PairTable> {
     let mut b = Builder::new(Path::new(name), opts);
     for (i, r) in rows.into_iter().enumerate() {
         b.push(i as u64 + 1, &|c| match c {
@@ -328,21 +337,36 @@ impl Col {
 
     fn all_names() -> [&'static str; 14] {
         [
-            "clip_id", "scenario", "attack", "condition", "ade_clean", "ade_attacked", "l2", "coc_clean",
-            "coc_attacked", "family", "level", "coc_changed", "jaccard", "l2_m",
+            "clip_id",
+            "scenario",
+            "attack",
+            "condition",
+            "ade_clean",
+            "ade_attacked",
+            "l2",
+            "coc_clean",
+            "coc_attacked",
+            "family",
+            "level",
+            "coc_changed",
+            "jaccard",
+            "l2_m",
         ]
     }
 }
 
 /// Maps column kinds to positions in the file's header.
-fn map_header<'h>(path: &Path, headers: impl Iterator<Item = &'h str>) -> Result<[Option<usize>; N_COLS]> {
+fn map_header<'h>(
+    path: &Path,
+    headers: impl Iterator<Item = &'h str>,
+) -> Result<[Option<usize>; N_COLS]> {
     let mut map = [None; N_COLS];
     let found: Vec<String> = headers.map(|h| h.trim().to_string()).collect();
     for (i, h) in found.iter().enumerate() {
-        if let Some(c) = Col::from_header(h) {
-            if map[c as usize].is_none() {
-                map[c as usize] = Some(i);
-            }
+        if let Some(c) = Col::from_header(h)
+            && map[c as usize].is_none()
+        {
+            map[c as usize] = Some(i);
         }
     }
     for c in REQUIRED {
@@ -377,7 +401,9 @@ fn edit_distance(a: &str, b: &str) -> usize {
     for (i, ca) in a.chars().enumerate() {
         let mut cur = vec![i + 1; b.len() + 1];
         for (j, cb) in b.iter().enumerate() {
-            cur[j + 1] = (prev[j] + usize::from(ca != *cb)).min(prev[j + 1] + 1).min(cur[j] + 1);
+            cur[j + 1] = (prev[j] + usize::from(ca != *cb))
+                .min(prev[j + 1] + 1)
+                .min(cur[j] + 1);
         }
         prev = cur;
     }
@@ -476,7 +502,16 @@ impl<'o> Builder<'o> {
     fn text<'c>(&self, row: u64, col: Col, cell: Cell<'c>, allow_empty: bool) -> Result<&'c str> {
         match cell {
             Cell::Str(s) if allow_empty || !s.trim().is_empty() => Ok(s),
-            _ => Err(self.bad(row, col, &cell, if allow_empty { "text" } else { "non-empty text" })),
+            _ => Err(self.bad(
+                row,
+                col,
+                &cell,
+                if allow_empty {
+                    "text"
+                } else {
+                    "non-empty text"
+                },
+            )),
         }
     }
 
@@ -503,8 +538,12 @@ impl<'o> Builder<'o> {
     /// Adds one data row; `get` returns the cell of a column kind (Null when absent).
     fn push<'c>(&mut self, row: u64, get: &dyn Fn(Col) -> Cell<'c>) -> Result<()> {
         let clip_id = self.text(row, Col::ClipId, get(Col::ClipId), false)?;
-        let scenario = self.text(row, Col::Scenario, get(Col::Scenario), false)?.trim();
-        let cond_name = self.text(row, Col::Condition, get(Col::Condition), false)?.trim();
+        let scenario = self
+            .text(row, Col::Scenario, get(Col::Scenario), false)?
+            .trim();
+        let cond_name = self
+            .text(row, Col::Condition, get(Col::Condition), false)?
+            .trim();
         let ade_clean = self.distance(row, Col::AdeClean, get(Col::AdeClean))?;
         let ade_attacked = self.distance(row, Col::AdeAttacked, get(Col::AdeAttacked))?;
         let l2 = self.distance(row, Col::L2, get(Col::L2))?;
@@ -581,7 +620,12 @@ impl<'o> Builder<'o> {
         }
         mask[word] |= 1 << bit;
 
-        let mut f = TextFeatures::compute(coc_clean, coc_attacked, &self.opts.actions, &mut self.scratch);
+        let mut f = TextFeatures::compute(
+            coc_clean,
+            coc_attacked,
+            &self.opts.actions,
+            &mut self.scratch,
+        );
         match get(Col::CocChanged) {
             Cell::Null => {}
             Cell::Bool(b) => f.changed = b,
@@ -607,6 +651,9 @@ impl<'o> Builder<'o> {
         }
 
         self.rows.push(row);
+        if self.rows.len().is_multiple_of(2_000_000) {
+            log::info!("{}: {} rows read", self.path.display(), self.rows.len());
+        }
         self.clip.push(clip);
         self.condition.push(cond);
         self.ade_clean.push(ade_clean);
@@ -619,22 +666,42 @@ impl<'o> Builder<'o> {
         Ok(())
     }
 
-    fn explicit_family_level<'c>(&self, row: u64, get: &dyn Fn(Col) -> Cell<'c>) -> Result<Option<(Family, f64)>> {
+    fn explicit_family_level<'c>(
+        &self,
+        row: u64,
+        get: &dyn Fn(Col) -> Cell<'c>,
+    ) -> Result<Option<(Family, f64)>> {
         let fam = match get(Col::Family) {
             Cell::Str(s) if !s.trim().is_empty() => Some(s.trim()),
             _ => None,
         };
         let lvl_cell = get(Col::Level);
-        let lvl_present = !matches!(lvl_cell, Cell::Null) && !matches!(lvl_cell, Cell::Str(s) if s.trim().is_empty());
+        let lvl_present = !matches!(lvl_cell, Cell::Null)
+            && !matches!(lvl_cell, Cell::Str(s) if s.trim().is_empty());
         match (fam, lvl_present) {
             (None, false) => Ok(None),
-            (Some(f), true) => Ok(Some((Family::from_name(f), self.number(row, Col::Level, lvl_cell)?))),
-            (Some(_), false) => Err(self.bad(row, Col::Level, &lvl_cell, "a level next to the family")),
-            (None, true) => Err(self.bad(row, Col::Family, &get(Col::Family), "a family next to the level")),
+            (Some(f), true) => Ok(Some((
+                Family::from_name(f),
+                self.number(row, Col::Level, lvl_cell)?,
+            ))),
+            (Some(_), false) => {
+                Err(self.bad(row, Col::Level, &lvl_cell, "a level next to the family"))
+            }
+            (None, true) => Err(self.bad(
+                row,
+                Col::Family,
+                &get(Col::Family),
+                "a family next to the level",
+            )),
         }
     }
 
-    fn condition_info<'c>(&self, row: u64, name: &str, get: &dyn Fn(Col) -> Cell<'c>) -> Result<ConditionInfo> {
+    fn condition_info<'c>(
+        &self,
+        row: u64,
+        name: &str,
+        get: &dyn Fn(Col) -> Cell<'c>,
+    ) -> Result<ConditionInfo> {
         if let Some((family, level)) = self.explicit_family_level(row, get)? {
             return Ok(ConditionInfo {
                 name: name.to_string(),
@@ -661,7 +728,12 @@ impl<'o> Builder<'o> {
         }
     }
 
-    fn check_condition_consistent<'c>(&self, row: u64, c: u32, get: &dyn Fn(Col) -> Cell<'c>) -> Result<()> {
+    fn check_condition_consistent<'c>(
+        &self,
+        row: u64,
+        c: u32,
+        get: &dyn Fn(Col) -> Cell<'c>,
+    ) -> Result<()> {
         if let Some((family, level)) = self.explicit_family_level(row, get)? {
             let known = &self.conditions[c as usize];
             if known.family != family || known.level != level {
@@ -702,7 +774,12 @@ impl<'o> Builder<'o> {
                         .filter(|&c| mask.get(c / 64).is_none_or(|w| w & (1 << (c % 64)) == 0))
                         .map(|c| self.conditions[c].name.as_str())
                         .collect();
-                    format!("{} (row {}): missing {}", self.clip_ids[k], self.clip_first_row[k], missing.join(", "))
+                    format!(
+                        "{} (row {}): missing {}",
+                        self.clip_ids[k],
+                        self.clip_first_row[k],
+                        missing.join(", ")
+                    )
                 })
                 .collect::<Vec<_>>()
                 .join("; ");
@@ -775,7 +852,12 @@ fn read_csv<R: Read>(src: R, b: &mut Builder<'_>) -> Result<()> {
         .iter()
         .map(std::str::from_utf8)
         .collect::<std::result::Result<_, _>>()
-        .map_err(|_| not_csv(format!("the header row is not UTF-8 text; {}", looks_like(&head))))?;
+        .map_err(|_| {
+            not_csv(format!(
+                "the header row is not UTF-8 text; {}",
+                looks_like(&head)
+            ))
+        })?;
     if header_strs.len() < 2 {
         return Err(not_csv(format!(
             "the header row has {} column(s); {}",
@@ -888,7 +970,12 @@ fn read_jsonl<R: Read>(src: R, b: &mut Builder<'_>) -> Result<()> {
         };
         for c in REQUIRED {
             if matches!(cell_of(c), Cell::Null) {
-                return Err(b.bad(line_no, c, &Cell::Null, "a value (the key is missing on this line)"));
+                return Err(b.bad(
+                    line_no,
+                    c,
+                    &Cell::Null,
+                    "a value (the key is missing on this line)",
+                ));
             }
         }
         b.push(line_no, &cell_of)?;
@@ -899,7 +986,10 @@ fn read_jsonl<R: Read>(src: R, b: &mut Builder<'_>) -> Result<()> {
 // ---------------------------------------------------------------------------------------------
 // Parquet
 
-fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(src: T, b: &mut Builder<'_>) -> Result<()> {
+fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(
+    src: T,
+    b: &mut Builder<'_>,
+) -> Result<()> {
     use arrow_array::{Array, cast::AsArray};
     use arrow_schema::DataType;
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -910,7 +1000,8 @@ fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(src: T, b: &mut
         expected: Format::Parquet.label(),
         detail,
     };
-    let builder = ParquetRecordBatchReaderBuilder::try_new(src).map_err(|e| not_parquet(e.to_string()))?;
+    let builder =
+        ParquetRecordBatchReaderBuilder::try_new(src).map_err(|e| not_parquet(e.to_string()))?;
     let schema = builder.schema().clone();
     let map = map_header(&b.path, schema.fields().iter().map(|f| f.name().as_str()))?;
     let reader = builder
@@ -920,7 +1011,10 @@ fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(src: T, b: &mut
     let mut row0 = 0u64;
     for batch in reader {
         let batch = batch.map_err(|e| not_parquet(e.to_string()))?;
-        let cols: Vec<Option<&dyn Array>> = map.iter().map(|m| m.map(|i| batch.column(i).as_ref())).collect();
+        let cols: Vec<Option<&dyn Array>> = map
+            .iter()
+            .map(|m| m.map(|i| batch.column(i).as_ref()))
+            .collect();
         for (k, col) in cols.iter().enumerate() {
             if let Some(a) = col {
                 let ok = matches!(
@@ -960,23 +1054,45 @@ fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(src: T, b: &mut
                 DataType::Utf8 => Cell::Str(a.as_string::<i32>().value(i)),
                 DataType::LargeUtf8 => Cell::Str(a.as_string::<i64>().value(i)),
                 DataType::Utf8View => Cell::Str(a.as_string_view().value(i)),
-                DataType::Float64 => Cell::Num(a.as_primitive::<arrow_array::types::Float64Type>().value(i)),
-                DataType::Float32 => Cell::Num(f64::from(a.as_primitive::<arrow_array::types::Float32Type>().value(i))),
-                DataType::Int64 => Cell::Num(a.as_primitive::<arrow_array::types::Int64Type>().value(i) as f64),
-                DataType::Int32 => Cell::Num(f64::from(a.as_primitive::<arrow_array::types::Int32Type>().value(i))),
-                DataType::Int16 => Cell::Num(f64::from(a.as_primitive::<arrow_array::types::Int16Type>().value(i))),
-                DataType::Int8 => Cell::Num(f64::from(a.as_primitive::<arrow_array::types::Int8Type>().value(i))),
-                DataType::UInt64 => Cell::Num(a.as_primitive::<arrow_array::types::UInt64Type>().value(i) as f64),
-                DataType::UInt32 => Cell::Num(f64::from(a.as_primitive::<arrow_array::types::UInt32Type>().value(i))),
-                DataType::UInt16 => Cell::Num(f64::from(a.as_primitive::<arrow_array::types::UInt16Type>().value(i))),
-                DataType::UInt8 => Cell::Num(f64::from(a.as_primitive::<arrow_array::types::UInt8Type>().value(i))),
+                DataType::Float64 => {
+                    Cell::Num(a.as_primitive::<arrow_array::types::Float64Type>().value(i))
+                }
+                DataType::Float32 => Cell::Num(f64::from(
+                    a.as_primitive::<arrow_array::types::Float32Type>().value(i),
+                )),
+                DataType::Int64 => {
+                    Cell::Num(a.as_primitive::<arrow_array::types::Int64Type>().value(i) as f64)
+                }
+                DataType::Int32 => Cell::Num(f64::from(
+                    a.as_primitive::<arrow_array::types::Int32Type>().value(i),
+                )),
+                DataType::Int16 => Cell::Num(f64::from(
+                    a.as_primitive::<arrow_array::types::Int16Type>().value(i),
+                )),
+                DataType::Int8 => Cell::Num(f64::from(
+                    a.as_primitive::<arrow_array::types::Int8Type>().value(i),
+                )),
+                DataType::UInt64 => {
+                    Cell::Num(a.as_primitive::<arrow_array::types::UInt64Type>().value(i) as f64)
+                }
+                DataType::UInt32 => Cell::Num(f64::from(
+                    a.as_primitive::<arrow_array::types::UInt32Type>().value(i),
+                )),
+                DataType::UInt16 => Cell::Num(f64::from(
+                    a.as_primitive::<arrow_array::types::UInt16Type>().value(i),
+                )),
+                DataType::UInt8 => Cell::Num(f64::from(
+                    a.as_primitive::<arrow_array::types::UInt8Type>().value(i),
+                )),
                 DataType::Boolean => Cell::Bool(a.as_boolean().value(i)),
                 _ => Cell::Null,
             }
         }
         for i in 0..batch.num_rows() {
             let row = row0 + i as u64 + 1;
-            b.push(row, &|c| cols[c as usize].map_or(Cell::Null, |a| cell(a, i)))?;
+            b.push(row, &|c| {
+                cols[c as usize].map_or(Cell::Null, |a| cell(a, i))
+            })?;
         }
         row0 += batch.num_rows() as u64;
     }

@@ -51,16 +51,54 @@ pub fn conventions(p: &EnvelopeParams) -> BTreeMap<String, String> {
     });
     put("level_means", "per group and level, means over the group's pairs at that level; the clean mean is over the same pairs (paired)".into());
     put("axes", "one ordered axis per family; brightness splits into darken (gain < 1, more severe as the gain falls) and brighten (gain > 1); other families ascend by level; identity levels are not perturbations".into());
-    put("aggregates", format!("{} pools the classified scenarios, {} pools every clip; a scenario's threshold is compared with {}", model::AGG_CLASSIFIED, model::AGG_ALL, model::AGG_ALL));
+    put(
+        "aggregates",
+        format!(
+            "{} pools the classified scenarios, {} pools every clip; a scenario's threshold is compared with {}",
+            model::AGG_CLASSIFIED,
+            model::AGG_ALL,
+            model::AGG_ALL
+        ),
+    );
     put("bootstrap", "clips resampled with replacement within each scenario label, each clip with all its conditions; aggregates are sums of their strata (stratified); ΔADE intervals are numpy-linear percentiles; σ* intervals are inverse-CDF quantiles on the ordinal scale none < levels (ties: the smaller level)".into());
-    put("pilot", format!("a scenario with fewer than {} clips is a pilot", p.min_clips));
-    put("gmm", format!("1-D Gaussian mixture on L2 of changed pairs: k-means initialisation, {} starts per fit keeping the best lower bound, reg_covar 1e-6, tol 1e-3, max_iter 200; BIC = -2 n loglik + (3k-1) ln n", p.n_init));
+    put(
+        "pilot",
+        format!(
+            "a scenario with fewer than {} clips is a pilot",
+            p.min_clips
+        ),
+    );
+    put(
+        "gmm",
+        format!(
+            "1-D Gaussian mixture on L2 of changed pairs: k-means initialisation, {} starts per fit keeping the best lower bound, reg_covar 1e-6, tol 1e-3, max_iter 200; BIC = -2 n loglik + (3k-1) ln n",
+            p.n_init
+        ),
+    );
     put("final_model", "k = the modal BIC-optimal k over the restart seeds (ties: the smaller k); the model is the lowest-BIC fit at that k".into());
     put("bands", "components sorted by mean: C0 lowest; each changed pair assigned to the band of maximum posterior".into());
-    put("high_severity", format!("the top {} bands (at most k-1); P(high | changed, s) = high pairs / changed pairs of s", p.high_bands));
-    put("severity_group", format!("mild if P(high|s) <= P(high) of all changed pairs; severe if >= {} x that; moderate between", p.severe_factor));
+    put(
+        "high_severity",
+        format!(
+            "the top {} bands (at most k-1); P(high | changed, s) = high pairs / changed pairs of s",
+            p.high_bands
+        ),
+    );
+    put(
+        "severity_group",
+        format!(
+            "mild if P(high|s) <= P(high) of all changed pairs; severe if >= {} x that; moderate between",
+            p.severe_factor
+        ),
+    );
     put("acceptance", "with --pi-star: s passes iff sigma_op <= sigma*(s) and P(high|s) <= pi*; sigma_op defaults to the all-clips aggregate threshold".into());
-    put("mann_whitney", format!("two-sided, asymptotic, tie-corrected, continuity-corrected; complete rewrites J < {} vs mid-range edits {} <= J <= {}; Cohen's d = (low - mid) / pooled sd; power: normal approximation of a two-sided two-sample test at alpha {}", p.jaccard_low, p.jaccard_low, p.jaccard_high, p.alpha));
+    put(
+        "mann_whitney",
+        format!(
+            "two-sided, asymptotic, tie-corrected, continuity-corrected; complete rewrites J < {} vs mid-range edits {} <= J <= {}; Cohen's d = (low - mid) / pooled sd; power: normal approximation of a two-sided two-sample test at alpha {}",
+            p.jaccard_low, p.jaccard_low, p.jaccard_high, p.alpha
+        ),
+    );
     put("icc", "ICC(2,1) and ICC(3,1) (Shrout & Fleiss) of the 0/1 flip flags, clips as targets and conditions as raters, complete clips only".into());
     put("chi2", "Pearson chi-square without Yates correction on the classified scenario x band counts, empty rows and columns dropped; Cramer's V = sqrt(chi2 / (n (min(r,c)-1)))".into());
     put("actions", "keyword rules on the leading clause (see the action rules); transitions count changed pairs of classified scenarios".into());

@@ -272,6 +272,8 @@ pub struct Severity {
     pub bands_mode: &'static str,
     /// BIC table.
     pub bic: Vec<BicRow>,
+    /// The BIC-optimal k of each restart seed (seed index order).
+    pub chosen_per_seed: Vec<usize>,
     /// Chosen k.
     pub chosen_k: Option<usize>,
     /// Cross-validated held-out log-likelihood.

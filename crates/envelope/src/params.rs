@@ -140,23 +140,33 @@ impl Default for EnvelopeParams {
 impl EnvelopeParams {
     /// Checks every parameter; call before analysing.
     pub fn validate(&self) -> Result<()> {
-        let bad = |name: &'static str, reason: String| Err(EnvelopeError::InvalidParam { name, reason });
+        let bad =
+            |name: &'static str, reason: String| Err(EnvelopeError::InvalidParam { name, reason });
         if self.budgets.is_empty() {
             return bad("budgets", "give at least one budget".into());
         }
         for &b in &self.budgets {
             if !(b.is_finite() && b > 0.0 && b < 10.0) {
-                return bad("budgets", format!("{b} is not a relative budget in (0, 10)"));
+                return bad(
+                    "budgets",
+                    format!("{b} is not a relative budget in (0, 10)"),
+                );
             }
         }
         if !self.budgets.contains(&self.headline_budget) {
             return bad(
                 "headline_budget",
-                format!("{} is not one of the budgets {:?}", self.headline_budget, self.budgets),
+                format!(
+                    "{} is not one of the budgets {:?}",
+                    self.headline_budget, self.budgets
+                ),
             );
         }
         if self.bootstrap == 1 || self.bootstrap > 10_000_000 {
-            return bad("bootstrap", "use 0 (off) or 2..=10,000,000 resamples".into());
+            return bad(
+                "bootstrap",
+                "use 0 (off) or 2..=10,000,000 resamples".into(),
+            );
         }
         if !(1..=16).contains(&self.k_max) {
             return bad("k_max", "must be in 1..=16".into());
@@ -173,23 +183,23 @@ impl EnvelopeParams {
         if self.cv_folds == 1 || self.cv_folds > 100 {
             return bad("cv_folds", "use 0 (off) or 2..=100".into());
         }
-        if let Bands::Fixed(k) = self.bands {
-            if !(1..=16).contains(&k) {
-                return bad("bands", "a fixed band count must be in 1..=16".into());
-            }
+        if let Bands::Fixed(k) = self.bands
+            && !(1..=16).contains(&k)
+        {
+            return bad("bands", "a fixed band count must be in 1..=16".into());
         }
         if self.high_bands == 0 {
             return bad("high_bands", "must be at least 1".into());
         }
-        if let Some(p) = self.pi_star {
-            if !(0.0..=1.0).contains(&p) {
-                return bad("pi_star", format!("{p} is not a probability"));
-            }
+        if let Some(p) = self.pi_star
+            && !(0.0..=1.0).contains(&p)
+        {
+            return bad("pi_star", format!("{p} is not a probability"));
         }
-        if let Some(s) = self.sigma_op {
-            if !s.is_finite() {
-                return bad("sigma_op", "must be finite".into());
-            }
+        if let Some(s) = self.sigma_op
+            && !s.is_finite()
+        {
+            return bad("sigma_op", "must be finite".into());
         }
         if !(self.severe_factor.is_finite() && self.severe_factor >= 1.0) {
             return bad("severe_factor", "must be a finite factor >= 1".into());

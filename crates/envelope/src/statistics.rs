@@ -32,7 +32,10 @@ pub(crate) fn compute(
             (None, None)
         }
     };
-    let l2_unchanged: Vec<f64> = (0..n).filter(|&r| !t.changed[r]).map(|r| t.l2_m[r]).collect();
+    let l2_unchanged: Vec<f64> = (0..n)
+        .filter(|&r| !t.changed[r])
+        .map(|r| t.l2_m[r])
+        .collect();
     let cohens_d = match effect::cohens_d(l2_changed, &l2_unchanged) {
         Ok(d) => finite(d),
         Err(e) => {
@@ -65,8 +68,13 @@ pub(crate) fn compute(
         c_ch[c] += usize::from(t.changed[r]);
         c_l2[c] += t.l2_m[r];
     }
-    let used: Vec<usize> = (0..n_cond).filter(|&c| c_n[c] > 0 && slot_of_cond[c].is_some()).collect();
-    let rates: Vec<f64> = used.iter().map(|&c| c_ch[c] as f64 / c_n[c] as f64).collect();
+    let used: Vec<usize> = (0..n_cond)
+        .filter(|&c| c_n[c] > 0 && slot_of_cond[c].is_some())
+        .collect();
+    let rates: Vec<f64> = used
+        .iter()
+        .map(|&c| c_ch[c] as f64 / c_n[c] as f64)
+        .collect();
     let ml2: Vec<f64> = used.iter().map(|&c| c_l2[c] / c_n[c] as f64).collect();
     let change_rate_vs_l2 = match correlation::pearson(&rates, &ml2) {
         Ok(c) => corr(c),
@@ -118,13 +126,21 @@ pub(crate) fn compute(
             power_effect_size: p.power_effect_size,
             power,
         })
-        .filter(|m| [m.u, m.z, m.p_value, m.cohens_d, m.power].iter().all(|v| v.is_finite())),
+        .filter(|m| {
+            [m.u, m.z, m.p_value, m.cohens_d, m.power]
+                .iter()
+                .all(|v| v.is_finite())
+        }),
         (a, b, c) => {
-            let why = [a.err().map(|e| e.to_string()), b.err().map(|e| e.to_string()), c.err().map(|e| e.to_string())]
-                .into_iter()
-                .flatten()
-                .next()
-                .unwrap_or_default();
+            let why = [
+                a.err().map(|e| e.to_string()),
+                b.err().map(|e| e.to_string()),
+                c.err().map(|e| e.to_string()),
+            ]
+            .into_iter()
+            .flatten()
+            .next()
+            .unwrap_or_default();
             note(
                 "mwu",
                 format!(
@@ -183,7 +199,10 @@ pub(crate) fn compute(
             always += 1;
         }
     }
-    let complete: Vec<Vec<f64>> = flips.into_iter().filter(|r| r.iter().all(|v| !v.is_nan())).collect();
+    let complete: Vec<Vec<f64>> = flips
+        .into_iter()
+        .filter(|r| r.iter().all(|v| !v.is_nan()))
+        .collect();
     let icc = match icc::icc(&complete) {
         Ok(i) if i.icc2_1.is_finite() && i.icc3_1.is_finite() => Some(IccOut {
             icc2_1: i.icc2_1,

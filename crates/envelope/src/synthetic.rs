@@ -123,7 +123,11 @@ pub fn for_each_row(p: &SyntheticParams, mut f: impl FnMut(SyntheticRow<'_>)) {
         let clean = clean_mean * (0.35 * normal(&mut rng)).exp();
         let fragility = (0.8 * normal(&mut rng)).exp();
         let base_phrase = (s + rng.random_range(0..3)) % PHRASES.len();
-        let tilt = if scenario == "STOP_SIGNAL" || scenario == "INTERSECTION" { 1.8 } else { 1.0 };
+        let tilt = if scenario == "STOP_SIGNAL" || scenario == "INTERSECTION" {
+            1.8
+        } else {
+            1.0
+        };
         for &(condition, sev) in CONDITIONS.iter() {
             let p_flip = (0.08 + 0.5 * sev * fragility).min(0.95);
             let flipped = rng.random::<f64>() < p_flip;
@@ -133,7 +137,11 @@ pub fn for_each_row(p: &SyntheticParams, mut f: impl FnMut(SyntheticRow<'_>)) {
             let coc_clean = PHRASES[base_phrase];
             let (l2, coc_attacked) = if flipped {
                 let u: f64 = rng.random();
-                let wsum: f64 = BANDS.iter().enumerate().map(|(i, b)| if i >= 4 { b.2 * tilt } else { b.2 }).sum();
+                let wsum: f64 = BANDS
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| if i >= 4 { b.2 * tilt } else { b.2 })
+                    .sum();
                 let mut cum = 0.0;
                 let mut band = BANDS.len() - 1;
                 for (i, b) in BANDS.iter().enumerate() {
@@ -144,7 +152,8 @@ pub fn for_each_row(p: &SyntheticParams, mut f: impl FnMut(SyntheticRow<'_>)) {
                     }
                 }
                 let l2 = (BANDS[band].0 + BANDS[band].1 * normal(&mut rng)).max(0.1);
-                let alt = (base_phrase + 1 + rng.random_range(0..PHRASES.len() - 1)) % PHRASES.len();
+                let alt =
+                    (base_phrase + 1 + rng.random_range(0..PHRASES.len() - 1)) % PHRASES.len();
                 rewrite.clear();
                 if rng.random::<f64>() < 0.6 {
                     // A surface rewrite of the same decision.
@@ -207,14 +216,24 @@ pub fn corpus(p: &SyntheticParams) -> PairTable {
 
 /// Streams the corpus as CSV (header + rows) into `w`.
 pub fn write_csv(p: &SyntheticParams, w: &mut impl std::io::Write) -> std::io::Result<()> {
-    writeln!(w, "clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked")?;
+    writeln!(
+        w,
+        "clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked"
+    )?;
     let mut err = Ok(());
     for_each_row(p, |r| {
         if err.is_ok() {
             err = writeln!(
                 w,
                 "clip_{:06},{},{},{:.6},{:.6},{:.6},\"{}\",\"{}\"",
-                r.clip, r.scenario, r.condition, r.ade_clean, r.ade_attacked, r.l2, r.coc_clean, r.coc_attacked
+                r.clip,
+                r.scenario,
+                r.condition,
+                r.ade_clean,
+                r.ade_attacked,
+                r.l2,
+                r.coc_clean,
+                r.coc_attacked
             );
         }
     });

@@ -79,16 +79,103 @@ struct RulesFile {
 }
 
 const DEFAULT_RULES: &[(&str, &[&str])] = &[
-    ("STOP", &["stop", "stopping", "halt", "come to a stop", "remain stopped", "stay stopped", "wait"]),
+    (
+        "STOP",
+        &[
+            "stop",
+            "stopping",
+            "halt",
+            "come to a stop",
+            "remain stopped",
+            "stay stopped",
+            "wait",
+        ],
+    ),
     ("YIELD", &["yield", "yielding", "give way"]),
-    ("SLOW_DOWN", &["slow", "slow down", "slowing", "decelerate", "decelerating", "brake", "braking", "reduce speed", "ease off"]),
+    (
+        "SLOW_DOWN",
+        &[
+            "slow",
+            "slow down",
+            "slowing",
+            "decelerate",
+            "decelerating",
+            "brake",
+            "braking",
+            "reduce speed",
+            "ease off",
+        ],
+    ),
     ("TURN_LEFT", &["turn left", "turning left", "left turn"]),
     ("TURN_RIGHT", &["turn right", "turning right", "right turn"]),
-    ("LANE_CHANGE", &["change lane", "change lanes", "changing lanes", "lane change", "overtake", "overtaking", "pass", "passing", "merge", "merging"]),
-    ("NUDGE", &["nudge", "nudging", "shift", "offset", "swerve", "steer around", "veer"]),
-    ("FOLLOW", &["follow", "following", "keep distance", "keep a safe distance", "maintain distance", "match speed"]),
-    ("ACCELERATE", &["accelerate", "accelerating", "speed up", "proceed", "proceeding", "go", "resume", "start moving"]),
-    ("KEEP_LANE", &["keep lane", "stay in lane", "keep the lane", "continue", "continuing", "maintain", "maintaining", "cruise", "cruising", "go straight", "drive straight", "keep straight"]),
+    (
+        "LANE_CHANGE",
+        &[
+            "change lane",
+            "change lanes",
+            "changing lanes",
+            "lane change",
+            "overtake",
+            "overtaking",
+            "pass",
+            "passing",
+            "merge",
+            "merging",
+        ],
+    ),
+    (
+        "NUDGE",
+        &[
+            "nudge",
+            "nudging",
+            "shift",
+            "offset",
+            "swerve",
+            "steer around",
+            "veer",
+        ],
+    ),
+    (
+        "FOLLOW",
+        &[
+            "follow",
+            "following",
+            "keep distance",
+            "keep a safe distance",
+            "maintain distance",
+            "match speed",
+        ],
+    ),
+    (
+        "ACCELERATE",
+        &[
+            "accelerate",
+            "accelerating",
+            "speed up",
+            "proceed",
+            "proceeding",
+            "go",
+            "resume",
+            "start moving",
+        ],
+    ),
+    (
+        "KEEP_LANE",
+        &[
+            "keep lane",
+            "stay in lane",
+            "keep the lane",
+            "continue",
+            "continuing",
+            "maintain",
+            "maintaining",
+            "cruise",
+            "cruising",
+            "go straight",
+            "drive straight",
+            "keep straight",
+        ],
+    ),
 ];
 
 impl Default for ActionRules {
@@ -174,10 +261,10 @@ impl ActionRules {
         if let Some(i) = self.first_match(clause) {
             return i;
         }
-        if clause.len() != lower.len() {
-            if let Some(i) = self.first_match(lower) {
-                return i;
-            }
+        if clause.len() != lower.len()
+            && let Some(i) = self.first_match(lower)
+        {
+            return i;
         }
         self.rules.len()
     }
@@ -195,7 +282,8 @@ impl ActionRules {
 }
 
 fn tokens_of(text: &str) -> impl Iterator<Item = &str> {
-    text.split(|c: char| !c.is_alphanumeric()).filter(|t| !t.is_empty())
+    text.split(|c: char| !c.is_alphanumeric())
+        .filter(|t| !t.is_empty())
 }
 
 fn token_seq(text: &str) -> Vec<String> {
@@ -224,7 +312,12 @@ pub struct TextScratch {
 
 impl TextFeatures {
     /// Computes the features of one pair of texts.
-    pub fn compute(clean: &str, attacked: &str, rules: &ActionRules, scratch: &mut TextScratch) -> Self {
+    pub fn compute(
+        clean: &str,
+        attacked: &str,
+        rules: &ActionRules,
+        scratch: &mut TextScratch,
+    ) -> Self {
         lower_into(clean, &mut scratch.lower_a);
         lower_into(attacked, &mut scratch.lower_b);
         let (a, b) = (scratch.lower_a.as_str(), scratch.lower_b.as_str());
@@ -280,7 +373,15 @@ fn jaccard_slices<T: Ord>(a: &[T], b: &[T]) -> f64 {
 }
 
 fn leading_clause(lower: &str) -> &str {
-    const SEPARATORS: [&str; 7] = [" because ", " due to ", " since ", " as ", " so that ", ";", ","];
+    const SEPARATORS: [&str; 7] = [
+        " because ",
+        " due to ",
+        " since ",
+        " as ",
+        " so that ",
+        ";",
+        ",",
+    ];
     let end = SEPARATORS
         .iter()
         .filter_map(|s| lower.find(s))
@@ -304,7 +405,9 @@ mod tests {
     fn jaccard_on_token_sets() {
         assert_eq!(jaccard("a b c", "a b c c"), 1.0);
         assert_eq!(jaccard("a b", "c d"), 0.0);
-        assert!((jaccard("Slow down, lead car", "slow down for the car") - 3.0 / 6.0).abs() < 1e-15);
+        assert!(
+            (jaccard("Slow down, lead car", "slow down for the car") - 3.0 / 6.0).abs() < 1e-15
+        );
         assert_eq!(jaccard("", "..."), 1.0);
         assert_eq!(jaccard("", "go"), 0.0);
     }
@@ -313,22 +416,38 @@ mod tests {
     fn actions_use_the_leading_clause() {
         let r = ActionRules::default();
         let label = |t: &str| r.labels()[r.classify(t)].clone();
-        assert_eq!(label("Slow down because the lead vehicle is braking ahead."), "SLOW_DOWN");
+        assert_eq!(
+            label("Slow down because the lead vehicle is braking ahead."),
+            "SLOW_DOWN"
+        );
         assert_eq!(label("Stop because of the red light."), "STOP");
-        assert_eq!(label("Keep lane since the stop sign is far away."), "KEEP_LANE");
-        assert_eq!(label("Nudge left to increase clearance from the parked vehicle."), "NUDGE");
+        assert_eq!(
+            label("Keep lane since the stop sign is far away."),
+            "KEEP_LANE"
+        );
+        assert_eq!(
+            label("Nudge left to increase clearance from the parked vehicle."),
+            "NUDGE"
+        );
         assert_eq!(label("Pass the slower truck on the left."), "LANE_CHANGE");
         assert_eq!(label("Turn right at the junction."), "TURN_RIGHT");
         assert_eq!(label("Hmm."), UNMATCHED_ACTION);
         // "stop sign" in the reason does not make a lane-keeping sentence a stop.
-        assert_eq!(label("Continue, the stop sign is for the other road."), "KEEP_LANE");
+        assert_eq!(
+            label("Continue, the stop sign is for the other road."),
+            "KEEP_LANE"
+        );
     }
 
     #[test]
     fn features_match_the_plain_functions() {
         let r = ActionRules::default();
         let mut sc = TextScratch::default();
-        for (a, b) in [("Slow down, lead car", "SLOW down for the car"), ("", ""), ("Über Straße", "über STRASSE")] {
+        for (a, b) in [
+            ("Slow down, lead car", "SLOW down for the car"),
+            ("", ""),
+            ("Über Straße", "über STRASSE"),
+        ] {
             let f = TextFeatures::compute(a, b, &r, &mut sc);
             assert_eq!(f.changed, coc_changed(a, b));
             assert_eq!(f.jaccard, jaccard(a, b));
@@ -345,7 +464,9 @@ mod tests {
         assert_eq!(r.labels(), vec!["BRAKE", UNMATCHED_ACTION]);
         assert_eq!(r.classify("Stop now"), 0);
         assert!(ActionRules::from_toml_str("[[action]]\nname = \"\"\nkeywords = [\"x\"]").is_err());
-        assert!(ActionRules::from_toml_str("[[action]]\nname = \"A\"\nkeywords = [\"--\"]").is_err());
+        assert!(
+            ActionRules::from_toml_str("[[action]]\nname = \"A\"\nkeywords = [\"--\"]").is_err()
+        );
         assert!(ActionRules::from_toml_str("action = 3").is_err());
     }
 }

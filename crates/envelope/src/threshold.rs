@@ -98,10 +98,19 @@ pub(crate) struct ClipSlots {
     pub axis_offset: Vec<usize>,
     /// Per clip: [clean sums (n_slots), attacked sums (n_slots), counts (n_slots)].
     pub values: Vec<f64>,
+    /// Every clip has exactly one pair in every slot.
+    pub uniform: bool,
+    /// `uniform`, and every clip's clean ADE is the same in every slot (one clean run per
+    /// clip): the bootstrap then sums it once per draw, which gives bit-identical sums.
+    pub uniform_clean: bool,
 }
 
 impl ClipSlots {
-    pub(crate) fn build(t: &PairTable, axes: &[Axis], slot_of_cond: &[Option<(usize, usize)>]) -> Self {
+    pub(crate) fn build(
+        t: &PairTable,
+        axes: &[Axis],
+        slot_of_cond: &[Option<(usize, usize)>],
+    ) -> Self {
         let mut axis_offset = Vec::with_capacity(axes.len());
         let mut n_slots = 0;
         for a in axes {
@@ -119,10 +128,20 @@ impl ClipSlots {
                 values[base + 2 * n_slots + s] += 1.0;
             }
         }
+        let uniform = values
+            .chunks(stride.max(1))
+            .all(|c| c[2 * n_slots..].iter().all(|&v| v == 1.0));
+        let uniform_clean = uniform
+            && n_slots > 0
+            && values
+                .chunks(stride)
+                .all(|c| c[..n_slots].iter().all(|&v| v == c[0]));
         Self {
             n_slots,
             axis_offset,
             values,
+            uniform,
+            uniform_clean,
         }
     }
 
@@ -157,12 +176,12 @@ pub(crate) fn threshold(
     budget: f64,
     rule: ThresholdRule,
 ) -> Outcome {
-    let present: Vec<usize> = (0..clean.len()).filter(|&i| count[i] > 0.0).collect();
     let passes = |i: usize| attacked[i] < (1.0 + budget) * clean[i];
+    let present = (0..clean.len()).filter(|&i| count[i] > 0.0);
     match rule {
         ThresholdRule::FirstViolation => {
             let mut last_ok = None;
-            for &i in &present {
+            for i in present {
                 if !passes(i) {
                     return Outcome {
                         level: last_ok,
@@ -177,10 +196,15 @@ pub(crate) fn threshold(
             }
         }
         ThresholdRule::MaxPassing => {
-            let best = present.iter().rev().copied().find(|&i| passes(i));
+            let last = present.clone().next_back();
+            let best = {
+                let mut p = present;
+                p.rfind(|&i| passes(i))
+            };
+
             Outcome {
                 level: best,
-                censored: best.is_some() && best == present.last().copied(),
+                censored: best.is_some() && best == last,
             }
         }
     }
@@ -246,6 +270,10 @@ pub(crate) fn bootstrap(
                 .collect();
             let mut stratum_sum = vec![0.0; strata_clips.len() * stride];
             let mut gsum = vec![0.0; stride];
+            let mut mc = vec![0.0; ns];
+            let mut ma = vec![0.0; ns];
+            // When every clip has exactly one pair per slot, counts are the number of draws.
+            let summed = if slots.uniform { 2 * ns } else { stride };
             for _ in lo..hi {
                 for (s, clips) in strata_clips.iter().enumerate() {
                     let acc = &mut stratum_sum[s * stride..(s + 1) * stride];
@@ -255,24 +283,44 @@ pub(crate) fn bootstrap(
                         continue;
                     }
                     let rng = &mut rngs[s];
-                    for _ in 0..n {
-                        let k = clips[rng.random_range(0..n)];
-                        for (a, v) in acc.iter_mut().zip(slots.clip(k)) {
-                            *a += v;
+                    if slots.uniform_clean {
+                        // acc[ns - 1] holds the clean sum, acc[ns..2ns] the attacked sums.
+                        let acc_sum = &mut acc[ns - 1..2 * ns];
+                        for _ in 0..n {
+                            let k = clips[rng.random_range(0..n)];
+                            let v = &slots.clip(k)[ns - 1..2 * ns];
+                            for (a, v) in acc_sum.iter_mut().zip(v) {
+                                *a += v;
+                            }
                         }
+                        let c = acc[ns - 1];
+                        acc[..ns - 1].fill(c);
+                    } else {
+                        let acc_sum = &mut acc[..summed];
+                        for _ in 0..n {
+                            let k = clips[rng.random_range(0..n)];
+                            let v = &slots.clip(k)[..summed];
+                            for (a, v) in acc_sum.iter_mut().zip(v) {
+                                *a += v;
+                            }
+                        }
+                    }
+                    if slots.uniform {
+                        acc[2 * ns..].fill(n as f64);
                     }
                 }
                 for g in 0..n_groups {
                     gsum.fill(0.0);
                     for &s in &groups.strata[g] {
-                        for (a, v) in gsum.iter_mut().zip(&stratum_sum[s * stride..(s + 1) * stride]) {
+                        for (a, v) in gsum
+                            .iter_mut()
+                            .zip(&stratum_sum[s * stride..(s + 1) * stride])
+                        {
                             *a += v;
                         }
                     }
                     let (clean, rest) = gsum.split_at(ns);
                     let (att, cnt) = rest.split_at(ns);
-                    let mut mc = vec![0.0; ns];
-                    let mut ma = vec![0.0; ns];
                     for i in 0..ns {
                         if cnt[i] > 0.0 {
                             mc[i] = clean[i] / cnt[i];
@@ -284,7 +332,8 @@ pub(crate) fn bootstrap(
                         let o = slots.axis_offset[ai];
                         let m = a.levels.len();
                         for (bi, &b) in budgets.iter().enumerate() {
-                            let out = threshold(&mc[o..o + m], &ma[o..o + m], &cnt[o..o + m], b, rule);
+                            let out =
+                                threshold(&mc[o..o + m], &ma[o..o + m], &cnt[o..o + m], b, rule);
                             counts[g][ai][bi][out.rank()] += 1;
                         }
                     }
@@ -295,7 +344,12 @@ pub(crate) fn bootstrap(
         .collect();
 
     let mut counts: Vec<Vec<Vec<Vec<usize>>>> = (0..n_groups)
-        .map(|_| n_rank.iter().map(|&nr| vec![vec![0usize; nr]; budgets.len()]).collect())
+        .map(|_| {
+            n_rank
+                .iter()
+                .map(|&nr| vec![vec![0usize; nr]; budgets.len()])
+                .collect()
+        })
         .collect();
     let mut delta = vec![vec![Vec::with_capacity(n_resamples); ns]; n_groups];
     for ch in chunks {
@@ -364,22 +418,76 @@ mod tests {
         // passes, passes, fails, passes
         let att = [1.0, 1.1, 1.2, 1.0];
         let o = threshold(&clean, &att, &ONES, 0.15, ThresholdRule::FirstViolation);
-        assert_eq!(o, Outcome { level: Some(1), censored: false });
+        assert_eq!(
+            o,
+            Outcome {
+                level: Some(1),
+                censored: false
+            }
+        );
         let o = threshold(&clean, &att, &ONES, 0.15, ThresholdRule::MaxPassing);
-        assert_eq!(o, Outcome { level: Some(3), censored: true });
+        assert_eq!(
+            o,
+            Outcome {
+                level: Some(3),
+                censored: true
+            }
+        );
         // exactly at the budget fails (strict <)
-        let o = threshold(&clean, &[1.15, 1.0, 1.0, 1.0], &ONES, 0.15, ThresholdRule::FirstViolation);
-        assert_eq!(o, Outcome { level: None, censored: false });
-        let o = threshold(&clean, &[1.0; 4], &ONES, 0.15, ThresholdRule::FirstViolation);
-        assert_eq!(o, Outcome { level: Some(3), censored: true });
+        let o = threshold(
+            &clean,
+            &[1.15, 1.0, 1.0, 1.0],
+            &ONES,
+            0.15,
+            ThresholdRule::FirstViolation,
+        );
+        assert_eq!(
+            o,
+            Outcome {
+                level: None,
+                censored: false
+            }
+        );
+        let o = threshold(
+            &clean,
+            &[1.0; 4],
+            &ONES,
+            0.15,
+            ThresholdRule::FirstViolation,
+        );
+        assert_eq!(
+            o,
+            Outcome {
+                level: Some(3),
+                censored: true
+            }
+        );
         let o = threshold(&clean, &[2.0; 4], &ONES, 0.15, ThresholdRule::MaxPassing);
-        assert_eq!(o, Outcome { level: None, censored: false });
+        assert_eq!(
+            o,
+            Outcome {
+                level: None,
+                censored: false
+            }
+        );
     }
 
     #[test]
     fn missing_levels_are_skipped() {
-        let o = threshold(&[1.0; 3], &[1.0, 9.0, 1.0], &[1.0, 0.0, 1.0], 0.1, ThresholdRule::FirstViolation);
-        assert_eq!(o, Outcome { level: Some(2), censored: true });
+        let o = threshold(
+            &[1.0; 3],
+            &[1.0, 9.0, 1.0],
+            &[1.0, 0.0, 1.0],
+            0.1,
+            ThresholdRule::FirstViolation,
+        );
+        assert_eq!(
+            o,
+            Outcome {
+                level: Some(2),
+                censored: true
+            }
+        );
     }
 
     #[test]

@@ -111,7 +111,7 @@ mod tests {
 
     #[test]
     fn d_and_power() {
-        let d = cohens_d(&[1.0, 2.0, 3.0], &[2.0, 3.0, 4.0]).unwrap();
+        let d = cohens_d(&[1.0, 2.0, 3.0], &[2.0, 3.0, 4.0]).expect("valid input");
         assert!((d + 1.0).abs() < 1e-15);
         assert!(matches!(
             cohens_d(&[1.0, 1.0], &[1.0]),
@@ -121,9 +121,9 @@ mod tests {
             cohens_d(&[1.0], &[2.0]),
             Err(StatsError::TooFewSamples { .. })
         ));
-        let p0 = two_sample_power(0.0, 20, 20, 0.05).unwrap();
+        let p0 = two_sample_power(0.0, 20, 20, 0.05).expect("valid input");
         assert!((p0 - 0.05).abs() < 1e-15);
-        let p = two_sample_power(0.5, 64, 64, 0.05).unwrap();
+        let p = two_sample_power(0.5, 64, 64, 0.05).expect("valid input");
         assert!((p - 0.807).abs() < 0.01);
         assert!(two_sample_power(0.5, 64, 64, 1.0).is_err());
     }

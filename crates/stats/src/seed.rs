@@ -18,7 +18,9 @@ pub fn mix64(mut z: u64) -> u64 {
 
 /// The child seed of `seed` at `path`.
 pub fn child(seed: u64, path: &[u64]) -> u64 {
-    path.iter().fold(mix64(seed), |acc, &p| mix64(acc ^ mix64(p.wrapping_add(0x5851_F42D_4C95_7F2D))))
+    path.iter().fold(mix64(seed), |acc, &p| {
+        mix64(acc ^ mix64(p.wrapping_add(0x5851_F42D_4C95_7F2D)))
+    })
 }
 
 /// A generator for the item at `path` under `seed`.

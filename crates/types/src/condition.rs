@@ -173,7 +173,19 @@ mod tests {
 
     #[test]
     fn rejects_other_names() {
-        for name in ["", "noise_", "noise_x", "noise_-3", "noise_NaN", "noise_inf", "fog_3", "fog_7a", "fog_11", "blur_3", "clean"] {
+        for name in [
+            "",
+            "noise_",
+            "noise_x",
+            "noise_-3",
+            "noise_NaN",
+            "noise_inf",
+            "fog_3",
+            "fog_7a",
+            "fog_11",
+            "blur_3",
+            "clean",
+        ] {
             assert!(Condition::parse(name).is_err(), "{name}");
         }
     }

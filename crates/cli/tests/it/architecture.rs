@@ -12,9 +12,29 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
         ("fogline-planner", &["fogline-types"][..]),
         ("fogline-rco", &["fogline-types"][..]),
         ("fogline-envelope", &["fogline-types", "fogline-stats"][..]),
-        ("fogline-sim", &["fogline-types", "fogline-world", "fogline-perturb", "fogline-planner", "fogline-rco"][..]),
-        ("fogline-campaign", &["fogline-types", "fogline-world", "fogline-perturb", "fogline-planner"][..]),
-        ("fogline-report", &["fogline-types", "fogline-envelope", "fogline-sim"][..]),
+        (
+            "fogline-sim",
+            &[
+                "fogline-types",
+                "fogline-world",
+                "fogline-perturb",
+                "fogline-planner",
+                "fogline-rco",
+            ][..],
+        ),
+        (
+            "fogline-campaign",
+            &[
+                "fogline-types",
+                "fogline-world",
+                "fogline-perturb",
+                "fogline-planner",
+            ][..],
+        ),
+        (
+            "fogline-report",
+            &["fogline-types", "fogline-envelope", "fogline-sim"][..],
+        ),
         ("fogline-cli", &["*"][..]),
         ("fogline-py", &["*"][..]),
         ("fogline-bench", &["*"][..]),
@@ -25,11 +45,21 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
 fn crates_depend_only_on_lower_levels() {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = std::process::Command::new(cargo)
-        .args(["metadata", "--format-version", "1", "--no-deps", "--offline"])
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--no-deps",
+            "--offline",
+        ])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .expect("cargo metadata runs");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let meta: serde_json::Value = serde_json::from_slice(&out.stdout).expect("metadata is JSON");
     let table = level_table();
     let mut seen = BTreeSet::new();
@@ -40,9 +70,9 @@ fn crates_depend_only_on_lower_levels() {
             continue;
         }
         seen.insert(name.to_string());
-        let allowed = table
-            .get(name)
-            .unwrap_or_else(|| panic!("{name} is not in the level table: add it to ARCHITECTURE.md and this test"));
+        let allowed = table.get(name).unwrap_or_else(|| {
+            panic!("{name} is not in the level table: add it to ARCHITECTURE.md and this test")
+        });
         for dep in pkg["dependencies"].as_array().expect("dependencies") {
             let dname = dep["name"].as_str().expect("dep name");
             let kind = dep["kind"].as_str();
@@ -55,7 +85,12 @@ fn crates_depend_only_on_lower_levels() {
         }
     }
     assert!(violations.is_empty(), "level rule broken: {violations:?}");
-    for must in ["fogline-types", "fogline-stats", "fogline-envelope", "fogline-cli"] {
+    for must in [
+        "fogline-types",
+        "fogline-stats",
+        "fogline-envelope",
+        "fogline-cli",
+    ] {
         assert!(seen.contains(must), "{must} missing from the workspace");
     }
 }

@@ -14,7 +14,11 @@ fn fogline(args: &[&str]) -> Output {
 fn write_pairs(dir: &Path, n_clips: usize) -> std::path::PathBuf {
     let path = dir.join("pairs.csv");
     let mut f = std::fs::File::create(&path).unwrap();
-    fogline_envelope::synthetic::write_csv(&fogline_envelope::synthetic::SyntheticParams { n_clips, seed: 4 }, &mut f).unwrap();
+    fogline_envelope::synthetic::write_csv(
+        &fogline_envelope::synthetic::SyntheticParams { n_clips, seed: 4 },
+        &mut f,
+    )
+    .unwrap();
     path
 }
 
@@ -25,10 +29,20 @@ fn envelope_writes_the_three_files_and_prints_their_paths() {
     let dir = tempfile::tempdir().unwrap();
     let pairs = write_pairs(dir.path(), 400);
     let out = dir.path().join("out");
-    let mut args = vec!["envelope", pairs.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let mut args = vec![
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
     args.extend(QUICK);
     let o = fogline(&args);
-    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let stdout = String::from_utf8(o.stdout).unwrap();
     for f in ["envelope.json", "envelope.md", "odd.json"] {
         assert!(out.join(f).is_file(), "{f}");
@@ -40,10 +54,22 @@ fn envelope_writes_the_three_files_and_prints_their_paths() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("analysed"));
 
     // The schema the issue promises.
-    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("envelope.json")).unwrap()).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("envelope.json")).unwrap()).unwrap();
     assert_eq!(v["schema_version"], 1);
     let th = &v["thresholds"][0];
-    for k in ["scenario", "budget", "rule", "n_clips", "sigma_star", "right_censored", "ci95", "bootstrap_share", "vs_aggregate", "pilot"] {
+    for k in [
+        "scenario",
+        "budget",
+        "rule",
+        "n_clips",
+        "sigma_star",
+        "right_censored",
+        "ci95",
+        "bootstrap_share",
+        "vs_aggregate",
+        "pilot",
+    ] {
         assert!(th.get(k).is_some(), "thresholds[].{k}");
     }
     assert!(v["dose_response"].as_array().is_some_and(|a| !a.is_empty()));
@@ -57,12 +83,25 @@ fn envelope_writes_the_three_files_and_prints_their_paths() {
     for k in ["name", "mean_m", "std_m", "weight", "share"] {
         assert!(sev["bands"][0].get(k).is_some(), "severity.bands[].{k}");
     }
-    assert!(v["high_severity"]["by_scenario"].is_array() && v["high_severity"]["by_condition"].is_array());
+    assert!(
+        v["high_severity"]["by_scenario"].is_array()
+            && v["high_severity"]["by_condition"].is_array()
+    );
     assert!(v["odd"].as_array().is_some_and(|a| a.len() == 7));
     let st = &v["statistics"];
     for k in [
-        "point_biserial_r", "cohens_d", "l2_ratio", "jaccard_l2_pearson", "jaccard_l2_spearman", "mwu",
-        "bimodality_coefficient", "chi2", "cramers_v", "icc", "never_flip_share", "always_flip_share",
+        "point_biserial_r",
+        "cohens_d",
+        "l2_ratio",
+        "jaccard_l2_pearson",
+        "jaccard_l2_spearman",
+        "mwu",
+        "bimodality_coefficient",
+        "chi2",
+        "cramers_v",
+        "icc",
+        "never_flip_share",
+        "always_flip_share",
     ] {
         assert!(st.get(k).is_some_and(|x| !x.is_null()), "statistics.{k}");
     }
@@ -76,14 +115,30 @@ fn envelope_writes_the_three_files_and_prints_their_paths() {
         assert!(st["icc"].get(k).is_some(), "icc.{k}");
     }
     assert!(v["transitions"]["counts"].is_array());
-    let odd: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("odd.json")).unwrap()).unwrap();
+    let odd: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("odd.json")).unwrap()).unwrap();
     assert_eq!(odd["kind"], "fogline.odd");
     let e = &odd["entries"][0];
-    for k in ["scenario", "sigma_star", "ci95", "p_high", "quadrant", "accepted"] {
+    for k in [
+        "scenario",
+        "sigma_star",
+        "ci95",
+        "p_high",
+        "quadrant",
+        "accepted",
+    ] {
         assert!(e.get(k).is_some(), "odd.entries[].{k}");
     }
     let md = std::fs::read_to_string(out.join("envelope.md")).unwrap();
-    for t in ["Table 1", "Table 2", "Table 3", "Table 4", "Table 5", "Statistics", "Action transitions"] {
+    for t in [
+        "Table 1",
+        "Table 2",
+        "Table 3",
+        "Table 4",
+        "Table 5",
+        "Statistics",
+        "Action transitions",
+    ] {
         assert!(md.contains(t), "{t}");
     }
 }
@@ -93,7 +148,13 @@ fn json_summary_on_stdout() {
     let dir = tempfile::tempdir().unwrap();
     let pairs = write_pairs(dir.path(), 120);
     let out = dir.path().join("o");
-    let mut args = vec!["envelope", pairs.to_str().unwrap(), "--out", out.to_str().unwrap(), "--json"];
+    let mut args = vec![
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ];
     args.extend(QUICK);
     let o = fogline(&args);
     assert_eq!(o.status.code(), Some(0));
@@ -106,34 +167,79 @@ fn bad_input_exits_2_with_the_error_chain_and_keeps_previous_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let pairs = write_pairs(dir.path(), 60);
     let out = dir.path().join("out");
-    let mut args = vec!["envelope", pairs.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let mut args = vec![
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
     args.extend(QUICK);
     assert_eq!(fogline(&args).status.code(), Some(0));
     let before = std::fs::read(out.join("envelope.json")).unwrap();
 
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, "clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\nc,PASSING,noise_10,1,oops,1,a,a\n").unwrap();
-    let o = fogline(&["envelope", bad.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let o = fogline(&[
+        "envelope",
+        bad.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("error:") && err.contains("bad.csv: row 2, column `ade_attacked`"), "{err}");
-    assert_eq!(std::fs::read(out.join("envelope.json")).unwrap(), before, "a failed run must not touch outputs");
+    assert!(
+        err.contains("error:") && err.contains("bad.csv: row 2, column `ade_attacked`"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(out.join("envelope.json")).unwrap(),
+        before,
+        "a failed run must not touch outputs"
+    );
     // No temporary files are left behind.
-    let leftovers: Vec<_> = std::fs::read_dir(&out).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains(".tmp-")).collect();
+    let leftovers: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
     assert!(leftovers.is_empty());
 
-    let o = fogline(&["envelope", "/nonexistent/pairs.csv", "--out", out.to_str().unwrap()]);
+    let o = fogline(&[
+        "envelope",
+        "/nonexistent/pairs.csv",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("cannot read /nonexistent/pairs.csv: No such file"), "{err}");
+    assert!(
+        err.contains("cannot read /nonexistent/pairs.csv: No such file"),
+        "{err}"
+    );
 
-    let o = fogline(&["envelope", pairs.to_str().unwrap(), "--out", out.to_str().unwrap(), "--headline", "0.3"]);
+    let o = fogline(&[
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--headline",
+        "0.3",
+    ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("headline_budget"));
 
-    let o = fogline(&["envelope", pairs.to_str().unwrap(), "--out", out.to_str().unwrap(), "--bands", "six"]);
+    let o = fogline(&[
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--bands",
+        "six",
+    ]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--bands: expected `auto` or a whole number"));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--bands: expected `auto` or a whole number")
+    );
 }
 
 #[test]
@@ -141,13 +247,37 @@ fn a_failed_acceptance_gate_exits_1() {
     let dir = tempfile::tempdir().unwrap();
     let pairs = write_pairs(dir.path(), 400);
     let out = dir.path().join("out");
-    let mut args = vec!["envelope", pairs.to_str().unwrap(), "--out", out.to_str().unwrap(), "--pi-star", "0"];
+    let mut args = vec![
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--pi-star",
+        "0",
+    ];
     args.extend(QUICK);
     let o = fogline(&args);
-    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(String::from_utf8_lossy(&o.stdout).contains("REJECTED"));
-    assert!(out.join("odd.json").is_file(), "outputs are written before the gate");
-    let mut args = vec!["envelope", pairs.to_str().unwrap(), "--out", out.to_str().unwrap(), "--pi-star", "1", "--sigma-op", "10"];
+    assert!(
+        out.join("odd.json").is_file(),
+        "outputs are written before the gate"
+    );
+    let mut args = vec![
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--pi-star",
+        "1",
+        "--sigma-op",
+        "10",
+    ];
     args.extend(QUICK);
     assert_eq!(fogline(&args).status.code(), Some(0));
 }
@@ -160,7 +290,20 @@ fn help_lists_the_commands_with_examples() {
     assert!(s.contains("envelope") && s.contains("demo") && s.contains("Examples:"));
     let o = fogline(&["envelope", "--help"]);
     let s = String::from_utf8(o.stdout).unwrap();
-    for flag in ["--budgets", "--rule", "--bootstrap", "--seed", "--k-max", "--restarts", "--n-init", "--bands", "--high-bands", "--pi-star", "--min-clips", "--l2"] {
+    for flag in [
+        "--budgets",
+        "--rule",
+        "--bootstrap",
+        "--seed",
+        "--k-max",
+        "--restarts",
+        "--n-init",
+        "--bands",
+        "--high-bands",
+        "--pi-star",
+        "--min-clips",
+        "--l2",
+    ] {
         assert!(s.contains(flag), "{flag}");
     }
     let o = fogline(&["envelope"]);
@@ -172,7 +315,12 @@ fn demo_runs_offline_and_prints_its_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
     let o = fogline(&["demo", "--clips", "150", "--out", out.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let s = String::from_utf8(o.stdout).unwrap();
     assert!(s.contains("envelope.md"));
     assert!(out.join("pairs.csv").is_file() && out.join("envelope.json").is_file());

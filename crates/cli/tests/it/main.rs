@@ -1,4 +1,6 @@
 //! Integration tests of the `fogline` binary and of the workspace's shape.
 
+#![allow(clippy::unwrap_used)]
+
 mod architecture;
 mod envelope_cmd;

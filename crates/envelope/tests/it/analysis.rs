@@ -6,14 +6,20 @@ use fogline_envelope::{Bands, EnvelopeParams, ThresholdRule, analyze, synthetic}
 use crate::{csv, quick_params};
 
 fn run_with_threads(n: usize, t: &fogline_envelope::PairTable, p: &EnvelopeParams) -> String {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap();
     let env = pool.install(|| analyze(t, p).unwrap());
     serde_json::to_string(&env).unwrap()
 }
 
 #[test]
 fn identical_with_one_and_two_threads() {
-    let t = synthetic::corpus(&synthetic::SyntheticParams { n_clips: 300, seed: 5 });
+    let t = synthetic::corpus(&synthetic::SyntheticParams {
+        n_clips: 300,
+        seed: 5,
+    });
     let p = quick_params();
     let one = run_with_threads(1, &t, &p);
     let two = run_with_threads(2, &t, &p);
@@ -29,23 +35,40 @@ fn no_nan_anywhere(env: &Envelope) {
     let v = serde_json::to_value(env).unwrap();
     fn walk(v: &serde_json::Value, path: &str) {
         match v {
-            serde_json::Value::Number(n) => assert!(n.as_f64().is_some_and(f64::is_finite), "{path}"),
-            serde_json::Value::Array(a) => a.iter().enumerate().for_each(|(i, x)| walk(x, &format!("{path}[{i}]"))),
-            serde_json::Value::Object(o) => o.iter().for_each(|(k, x)| walk(x, &format!("{path}.{k}"))),
+            serde_json::Value::Number(n) => {
+                assert!(n.as_f64().is_some_and(f64::is_finite), "{path}")
+            }
+            serde_json::Value::Array(a) => a
+                .iter()
+                .enumerate()
+                .for_each(|(i, x)| walk(x, &format!("{path}[{i}]"))),
+            serde_json::Value::Object(o) => {
+                o.iter().for_each(|(k, x)| walk(x, &format!("{path}.{k}")))
+            }
             _ => {}
         }
     }
     walk(&v, "$");
     for d in &env.dose_response {
-        assert!(d.mean_ade_clean_m.is_finite() && d.mean_ade_attacked_m.is_finite() && d.delta_ade_m.is_finite());
+        assert!(
+            d.mean_ade_clean_m.is_finite()
+                && d.mean_ade_attacked_m.is_finite()
+                && d.delta_ade_m.is_finite()
+        );
     }
     let md = fogline_envelope::markdown::render(env);
-    assert!(!md.contains("NaN") && !md.contains("inf"), "NaN in markdown");
+    assert!(
+        !md.contains("NaN") && !md.contains("inf"),
+        "NaN in markdown"
+    );
 }
 
 #[test]
 fn the_paper_shaped_corpus_has_the_expected_structure() {
-    let t = synthetic::corpus(&synthetic::SyntheticParams { n_clips: 800, seed: 1 });
+    let t = synthetic::corpus(&synthetic::SyntheticParams {
+        n_clips: 800,
+        seed: 1,
+    });
     let env = analyze(&t, &quick_params()).unwrap();
     no_nan_anywhere(&env);
     // Shares at each threshold outcome sum to 1.
@@ -78,26 +101,49 @@ fn the_paper_shaped_corpus_has_the_expected_structure() {
 #[test]
 fn thresholds_follow_the_dose_response() {
     // Two scenarios, hand-made: PASSING degrades past budget at noise_50; STOP_SIGNAL never.
-    let mut s = String::from("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n");
+    let mut s =
+        String::from("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n");
     for k in 0..4 {
-        for (c, f) in [("noise_10", 1.0), ("noise_30", 1.1), ("noise_50", 1.3), ("noise_70", 1.05)] {
+        for (c, f) in [
+            ("noise_10", 1.0),
+            ("noise_30", 1.1),
+            ("noise_50", 1.3),
+            ("noise_70", 1.05),
+        ] {
             s.push_str(&format!("p{k},PASSING,{c},2.0,{},1.0,Go.,Go.\n", 2.0 * f));
             s.push_str(&format!("s{k},STOP_SIGNAL,{c},1.0,1.0,1.0,Stop.,Stop.\n"));
         }
     }
     let t = csv(&s).unwrap();
-    for (rule, passing, passing_censored) in [(ThresholdRule::FirstViolation, Some(30.0), false), (ThresholdRule::MaxPassing, Some(70.0), true)] {
-        let p = EnvelopeParams { rule, bootstrap: 100, ..quick_params() };
+    for (rule, passing, passing_censored) in [
+        (ThresholdRule::FirstViolation, Some(30.0), false),
+        (ThresholdRule::MaxPassing, Some(70.0), true),
+    ] {
+        let p = EnvelopeParams {
+            rule,
+            bootstrap: 100,
+            ..quick_params()
+        };
         let env = analyze(&t, &p).unwrap();
         no_nan_anywhere(&env);
-        let th = |sc: &str| env.thresholds.iter().find(|x| x.scenario == sc && x.budget == 0.15 && x.axis == "gaussian_noise").unwrap().clone();
+        let th = |sc: &str| {
+            env.thresholds
+                .iter()
+                .find(|x| x.scenario == sc && x.budget == 0.15 && x.axis == "gaussian_noise")
+                .unwrap()
+                .clone()
+        };
         assert_eq!(th("PASSING").sigma_star, passing);
         assert_eq!(th("PASSING").right_censored, passing_censored);
         assert_eq!(th("STOP_SIGNAL").sigma_star, Some(70.0));
         assert!(th("STOP_SIGNAL").right_censored);
         // With no changed CoC at all, severity is undefined, not NaN.
         assert!(!env.severity.defined);
-        assert!(env.odd.iter().all(|o| o.p_high.is_none() && o.severity_group == "undefined"));
+        assert!(
+            env.odd
+                .iter()
+                .all(|o| o.p_high.is_none() && o.severity_group == "undefined")
+        );
         assert!(env.statistics.undefined.contains_key("mwu"));
     }
 }
@@ -106,19 +152,41 @@ fn thresholds_follow_the_dose_response() {
 fn budget_ten_percent_at_exact_boundary_fails() {
     let s = "clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n\
              a,LANE_KEEPING,noise_10,2.0,2.2,1,Go.,Go.\n";
-    let env = analyze(&csv(s).unwrap(), &EnvelopeParams { bootstrap: 0, ..quick_params() }).unwrap();
-    let th = env.thresholds.iter().find(|x| x.scenario == "LANE_KEEPING" && x.budget == 0.10).unwrap();
-    assert_eq!(th.sigma_star, None, "2.2 >= 1.1 * 2.0 violates the 10% budget");
-    let th = env.thresholds.iter().find(|x| x.scenario == "LANE_KEEPING" && x.budget == 0.15).unwrap();
+    let env = analyze(
+        &csv(s).unwrap(),
+        &EnvelopeParams {
+            bootstrap: 0,
+            ..quick_params()
+        },
+    )
+    .unwrap();
+    let th = env
+        .thresholds
+        .iter()
+        .find(|x| x.scenario == "LANE_KEEPING" && x.budget == 0.10)
+        .unwrap();
+    assert_eq!(
+        th.sigma_star, None,
+        "2.2 >= 1.1 * 2.0 violates the 10% budget"
+    );
+    let th = env
+        .thresholds
+        .iter()
+        .find(|x| x.scenario == "LANE_KEEPING" && x.budget == 0.15)
+        .unwrap();
     assert_eq!(th.sigma_star, Some(10.0));
     assert!(th.ci95.is_none());
 }
 
 #[test]
 fn fewer_changed_pairs_than_k_and_fixed_bands() {
-    let mut s = String::from("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n");
+    let mut s =
+        String::from("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n");
     for k in 0..3 {
-        s.push_str(&format!("c{k},FOLLOW_VEHICLE,noise_10,1,1,{},Go.,Stop.\n", 1.0 + k as f64));
+        s.push_str(&format!(
+            "c{k},FOLLOW_VEHICLE,noise_10,1,1,{},Go.,Stop.\n",
+            1.0 + k as f64
+        ));
     }
     let t = csv(&s).unwrap();
     let env = analyze(&t, &quick_params()).unwrap();
@@ -127,36 +195,73 @@ fn fewer_changed_pairs_than_k_and_fixed_bands() {
     if env.severity.defined {
         assert!(env.severity.chosen_k.unwrap() <= 3);
     }
-    let env = analyze(&t, &EnvelopeParams { bands: Bands::Fixed(2), ..quick_params() }).unwrap();
+    let env = analyze(
+        &t,
+        &EnvelopeParams {
+            bands: Bands::Fixed(2),
+            ..quick_params()
+        },
+    )
+    .unwrap();
     no_nan_anywhere(&env);
 }
 
 #[test]
 fn custom_label_sets_become_the_taxonomy() {
-    let mut s = String::from("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n");
+    let mut s =
+        String::from("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n");
     for k in 0..10 {
         for c in ["noise_10", "noise_30"] {
             let sc = if k % 2 == 0 { "highway" } else { "urban" };
-            s.push_str(&format!("c{k},{sc},{c},1,{},{},Go.,{}\n", 1.0 + 0.01 * k as f64, k, if k % 3 == 0 { "Stop." } else { "Go." }));
+            s.push_str(&format!(
+                "c{k},{sc},{c},1,{},{},Go.,{}\n",
+                1.0 + 0.01 * k as f64,
+                k,
+                if k % 3 == 0 { "Stop." } else { "Go." }
+            ));
         }
     }
     let env = analyze(&csv(&s).unwrap(), &quick_params()).unwrap();
     no_nan_anywhere(&env);
     assert_eq!(env.corpus.taxonomy, vec!["highway", "urban"]);
     assert_eq!(env.odd.len(), 2);
-    assert!(env.notes.iter().any(|n| n.contains("labels found in the data")));
+    assert!(
+        env.notes
+            .iter()
+            .any(|n| n.contains("labels found in the data"))
+    );
 }
 
 #[test]
 fn acceptance_with_pi_star() {
-    let t = synthetic::corpus(&synthetic::SyntheticParams { n_clips: 400, seed: 2 });
-    let env = analyze(&t, &EnvelopeParams { pi_star: Some(0.08), ..quick_params() }).unwrap();
-    let agg = env.thresholds.iter().find(|x| x.scenario == AGG_ALL && x.budget == 0.15 && x.axis == "gaussian_noise").unwrap();
+    let t = synthetic::corpus(&synthetic::SyntheticParams {
+        n_clips: 400,
+        seed: 2,
+    });
+    let env = analyze(
+        &t,
+        &EnvelopeParams {
+            pi_star: Some(0.08),
+            ..quick_params()
+        },
+    )
+    .unwrap();
+    let agg = env
+        .thresholds
+        .iter()
+        .find(|x| x.scenario == AGG_ALL && x.budget == 0.15 && x.axis == "gaussian_noise")
+        .unwrap();
     for o in &env.odd {
         let expect = o.sigma_star.is_some()
             && agg.sigma_star.is_some_and(|op| op <= o.sigma_star.unwrap())
             && o.p_high.is_some_and(|p| p <= 0.08);
-        assert_eq!(o.accepted, Some(expect), "{}: {:?}", o.scenario, o.acceptance_reason);
+        assert_eq!(
+            o.accepted,
+            Some(expect),
+            "{}: {:?}",
+            o.scenario,
+            o.acceptance_reason
+        );
     }
     // Without π*, acceptance is not evaluated.
     let env = analyze(&t, &quick_params()).unwrap();
@@ -165,15 +270,39 @@ fn acceptance_with_pi_star() {
 
 #[test]
 fn invalid_parameters_are_refused() {
-    let t = synthetic::corpus(&synthetic::SyntheticParams { n_clips: 20, seed: 2 });
+    let t = synthetic::corpus(&synthetic::SyntheticParams {
+        n_clips: 20,
+        seed: 2,
+    });
     for p in [
-        EnvelopeParams { budgets: vec![], ..quick_params() },
-        EnvelopeParams { headline_budget: 0.3, ..quick_params() },
-        EnvelopeParams { budgets: vec![f64::NAN], ..quick_params() },
-        EnvelopeParams { pi_star: Some(1.5), ..quick_params() },
-        EnvelopeParams { bootstrap: 1, ..quick_params() },
-        EnvelopeParams { k_max: 0, ..quick_params() },
-        EnvelopeParams { high_bands: 0, ..quick_params() },
+        EnvelopeParams {
+            budgets: vec![],
+            ..quick_params()
+        },
+        EnvelopeParams {
+            headline_budget: 0.3,
+            ..quick_params()
+        },
+        EnvelopeParams {
+            budgets: vec![f64::NAN],
+            ..quick_params()
+        },
+        EnvelopeParams {
+            pi_star: Some(1.5),
+            ..quick_params()
+        },
+        EnvelopeParams {
+            bootstrap: 1,
+            ..quick_params()
+        },
+        EnvelopeParams {
+            k_max: 0,
+            ..quick_params()
+        },
+        EnvelopeParams {
+            high_bands: 0,
+            ..quick_params()
+        },
     ] {
         let e = analyze(&t, &p).unwrap_err().to_string();
         assert!(e.starts_with("parameter "), "{e}");

@@ -1,5 +1,7 @@
 //! Integration tests of fogline-envelope.
 
+#![allow(clippy::unwrap_used)]
+
 mod analysis;
 mod golden;
 mod readers;
@@ -19,7 +21,12 @@ pub fn quick_params() -> EnvelopeParams {
 
 /// Reads CSV text.
 pub fn csv(text: &str) -> fogline_envelope::Result<PairTable> {
-    read_pairs_bytes("test.csv", Format::Csv, text.as_bytes(), &ReadOptions::default())
+    read_pairs_bytes(
+        "test.csv",
+        Format::Csv,
+        text.as_bytes(),
+        &ReadOptions::default(),
+    )
 }
 
 /// A valid CSV with `n_clips` clips under the paper's eight conditions.
@@ -37,7 +44,8 @@ struct StringWriter<'a>(&'a mut String);
 
 impl std::io::Write for StringWriter<'_> {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.push_str(std::str::from_utf8(buf).map_err(std::io::Error::other)?);
+        self.0
+            .push_str(std::str::from_utf8(buf).map_err(std::io::Error::other)?);
         Ok(buf.len())
     }
     fn flush(&mut self) -> std::io::Result<()> {

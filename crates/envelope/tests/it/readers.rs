@@ -28,12 +28,25 @@ fn a_valid_file_reads_in_all_three_formats_identically() {
                 "ade_clean" | "ade_attacked" | "l2" => serde_json::json!(v.parse::<f64>().unwrap()),
                 _ => serde_json::json!(v),
             };
-            obj.insert(if h == "attack" { "condition".into() } else { h.into() }, val);
+            obj.insert(
+                if h == "attack" {
+                    "condition".into()
+                } else {
+                    h.into()
+                },
+                val,
+            );
         }
         jsonl.push_str(&serde_json::Value::Object(obj).to_string());
         jsonl.push('\n');
     }
-    let b = read_pairs_bytes("t.jsonl", Format::Jsonl, jsonl.as_bytes(), &ReadOptions::default()).unwrap();
+    let b = read_pairs_bytes(
+        "t.jsonl",
+        Format::Jsonl,
+        jsonl.as_bytes(),
+        &ReadOptions::default(),
+    )
+    .unwrap();
     assert_eq!(a.len(), 160);
     assert_eq!(a.ade_attacked_m, b.ade_attacked_m);
     assert_eq!(a.changed, b.changed);
@@ -49,12 +62,34 @@ fn parquet_round_trip() {
     let cols: Vec<(&str, ArrayRef)> = vec![
         ("clip_id", Arc::new(StringArray::from(clips.to_vec()))),
         ("scenario", Arc::new(StringArray::from(vec!["PASSING"; 4]))),
-        ("attack", Arc::new(StringArray::from(vec!["noise_10", "fog_03", "noise_10", "fog_03"]))),
-        ("ade_clean", Arc::new(Float64Array::from(vec![1.0, 1.0, 2.0, 2.0]))),
-        ("ade_attacked", Arc::new(Float64Array::from(vec![1.1, 1.5, 2.0, 2.2]))),
+        (
+            "attack",
+            Arc::new(StringArray::from(vec![
+                "noise_10", "fog_03", "noise_10", "fog_03",
+            ])),
+        ),
+        (
+            "ade_clean",
+            Arc::new(Float64Array::from(vec![1.0, 1.0, 2.0, 2.0])),
+        ),
+        (
+            "ade_attacked",
+            Arc::new(Float64Array::from(vec![1.1, 1.5, 2.0, 2.2])),
+        ),
         ("l2", Arc::new(Float64Array::from(vec![0.5, 3.0, 0.1, 9.0]))),
-        ("coc_clean", Arc::new(StringArray::from(vec!["Keep lane."; 4]))),
-        ("coc_attacked", Arc::new(StringArray::from(vec!["Keep lane.", "Stop now.", "Keep lane.", "Slow down."]))),
+        (
+            "coc_clean",
+            Arc::new(StringArray::from(vec!["Keep lane."; 4])),
+        ),
+        (
+            "coc_attacked",
+            Arc::new(StringArray::from(vec![
+                "Keep lane.",
+                "Stop now.",
+                "Keep lane.",
+                "Slow down.",
+            ])),
+        ),
     ];
     let batch = RecordBatch::try_from_iter(cols).unwrap();
     let mut buf = Vec::new();
@@ -71,15 +106,23 @@ fn parquet_round_trip() {
     let mut w = parquet::arrow::ArrowWriter::try_new(&mut buf2, batch2.schema(), None).unwrap();
     w.write(&batch2).unwrap();
     w.close().unwrap();
-    let e = msg(read_pairs_bytes("t.parquet", Format::Parquet, &buf2, &ReadOptions::default()).unwrap_err());
+    let e = msg(
+        read_pairs_bytes("t.parquet", Format::Parquet, &buf2, &ReadOptions::default()).unwrap_err(),
+    );
     assert!(e.contains("missing column `l2`"), "{e}");
 }
 
 #[test]
 fn missing_and_misspelt_columns() {
     let e = msg(csv("clip_id,scenario,attack,ade_clen,ade_attacked,l2,coc_clean,coc_attacked\nc,S,noise_10,1,1,1,a,b\n").unwrap_err());
-    assert!(e.contains("test.csv: missing column `ade_clean` (did you mean `ade_clen`?)"), "{e}");
-    let e = msg(csv("clip_id,scenario,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\nc,S,1,1,1,a,b\n").unwrap_err());
+    assert!(
+        e.contains("test.csv: missing column `ade_clean` (did you mean `ade_clen`?)"),
+        "{e}"
+    );
+    let e = msg(csv(
+        "clip_id,scenario,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\nc,S,1,1,1,a,b\n",
+    )
+    .unwrap_err());
     assert!(e.contains("missing column `attack (or condition)`"), "{e}");
     // `condition` is accepted for `attack`.
     csv("clip_id,scenario,condition,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\nc,S,noise_10,1,1,1,a,b\n").unwrap();
@@ -94,7 +137,9 @@ fn bad_numbers_name_row_and_column() {
         ("-0.5", "a distance in metres (>= 0)"),
         ("", "a finite number"),
     ] {
-        let text = format!("{HEADER}c1,PASSING,noise_10,1.0,1.2,0.4,Go.,Go.\nc1,PASSING,noise_30,1.0,{value},0.4,Go.,Go.\n");
+        let text = format!(
+            "{HEADER}c1,PASSING,noise_10,1.0,1.2,0.4,Go.,Go.\nc1,PASSING,noise_30,1.0,{value},0.4,Go.,Go.\n"
+        );
         let e = msg(csv(&text).unwrap_err());
         assert!(e.contains("test.csv: row 3, column `ade_attacked`"), "{e}");
         assert!(e.contains(expected), "{value}: {e}");
@@ -103,16 +148,26 @@ fn bad_numbers_name_row_and_column() {
 
 #[test]
 fn duplicate_pairs_name_both_rows() {
-    let text = format!("{HEADER}c1,PASSING,noise_10,1,1,1,a,a\nc2,PASSING,noise_10,1,1,1,a,a\nc1,PASSING,noise_10,1,1,1,a,a\n");
+    let text = format!(
+        "{HEADER}c1,PASSING,noise_10,1,1,1,a,a\nc2,PASSING,noise_10,1,1,1,a,a\nc1,PASSING,noise_10,1,1,1,a,a\n"
+    );
     let e = msg(csv(&text).unwrap_err());
-    assert!(e.contains("row 4 repeats clip \"c1\" under condition \"noise_10\" (first at row 2)"), "{e}");
+    assert!(
+        e.contains("row 4 repeats clip \"c1\" under condition \"noise_10\" (first at row 2)"),
+        "{e}"
+    );
 }
 
 #[test]
 fn incomplete_clips_are_refused_unless_allowed() {
-    let text = format!("{HEADER}c1,PASSING,noise_10,1,1,1,a,a\nc1,PASSING,noise_30,1,1,1,a,a\nc2,PASSING,noise_10,1,1,1,a,a\n");
+    let text = format!(
+        "{HEADER}c1,PASSING,noise_10,1,1,1,a,a\nc1,PASSING,noise_30,1,1,1,a,a\nc2,PASSING,noise_10,1,1,1,a,a\n"
+    );
     let e = msg(csv(&text).unwrap_err());
-    assert!(e.contains("1 of 2 clips lack some conditions (e.g. c2 (row 4): missing noise_30)"), "{e}");
+    assert!(
+        e.contains("1 of 2 clips lack some conditions (e.g. c2 (row 4): missing noise_30)"),
+        "{e}"
+    );
     let opts = ReadOptions {
         allow_incomplete: true,
         ..ReadOptions::default()
@@ -141,7 +196,12 @@ fn unparseable_condition_needs_family_and_level() {
 fn a_clip_with_two_scenarios_is_refused() {
     let text = format!("{HEADER}c1,PASSING,noise_10,1,1,1,a,a\nc1,TURN_RIGHT,noise_30,1,1,1,a,a\n");
     let e = msg(csv(&text).unwrap_err());
-    assert!(e.contains("row 3: clip \"c1\" has scenario \"TURN_RIGHT\" but earlier rows say \"PASSING\""), "{e}");
+    assert!(
+        e.contains(
+            "row 3: clip \"c1\" has scenario \"TURN_RIGHT\" but earlier rows say \"PASSING\""
+        ),
+        "{e}"
+    );
 }
 
 #[test]
@@ -150,7 +210,10 @@ fn files_that_are_not_what_their_extension_says() {
     let parquet_named_csv = dir.path().join("pairs.csv");
     std::fs::write(&parquet_named_csv, b"PAR1\x15\x04\x15\x00garbage").unwrap();
     let e = msg(read_pairs(&parquet_named_csv, &ReadOptions::default()).unwrap_err());
-    assert!(e.contains("pairs.csv: not a valid CSV file: it looks like Parquet"), "{e}");
+    assert!(
+        e.contains("pairs.csv: not a valid CSV file: it looks like Parquet"),
+        "{e}"
+    );
 
     let csv_named_parquet = dir.path().join("pairs.parquet");
     std::fs::write(&csv_named_parquet, HEADER).unwrap();
@@ -160,7 +223,10 @@ fn files_that_are_not_what_their_extension_says() {
     let csv_named_jsonl = dir.path().join("pairs.jsonl");
     std::fs::write(&csv_named_jsonl, HEADER).unwrap();
     let e = msg(read_pairs(&csv_named_jsonl, &ReadOptions::default()).unwrap_err());
-    assert!(e.contains("pairs.jsonl: not a valid JSON lines file: line 1"), "{e}");
+    assert!(
+        e.contains("pairs.jsonl: not a valid JSON lines file: line 1"),
+        "{e}"
+    );
 
     let json_named_csv = dir.path().join("j.csv");
     std::fs::write(&json_named_csv, "{\"clip_id\": 1}\n").unwrap();
@@ -192,11 +258,32 @@ fn empty_files_and_ragged_rows() {
 fn jsonl_rows_missing_a_key_or_not_objects() {
     let line = r#"{"clip_id":"c","scenario":"PASSING","attack":"noise_10","ade_clean":1,"ade_attacked":1,"l2":1,"coc_clean":"a","coc_attacked":"a"}"#;
     let missing = r#"{"clip_id":"d","scenario":"PASSING","attack":"noise_10","ade_clean":1,"l2":1,"coc_clean":"a","coc_attacked":"a"}"#;
-    let e = msg(read_pairs_bytes("t.jsonl", Format::Jsonl, format!("{line}\n{missing}\n").as_bytes(), &ReadOptions::default()).unwrap_err());
+    let e = msg(read_pairs_bytes(
+        "t.jsonl",
+        Format::Jsonl,
+        format!("{line}\n{missing}\n").as_bytes(),
+        &ReadOptions::default(),
+    )
+    .unwrap_err());
     assert!(e.contains("t.jsonl: row 2, column `ade_attacked`"), "{e}");
-    let e = msg(read_pairs_bytes("t.jsonl", Format::Jsonl, format!("{line}\n[1,2]\n").as_bytes(), &ReadOptions::default()).unwrap_err());
-    assert!(e.contains("line 2: expected one JSON object per line"), "{e}");
-    let e = msg(read_pairs_bytes("t.jsonl", Format::Jsonl, format!("{line}\n{{\"x\": \n").as_bytes(), &ReadOptions::default()).unwrap_err());
+    let e = msg(read_pairs_bytes(
+        "t.jsonl",
+        Format::Jsonl,
+        format!("{line}\n[1,2]\n").as_bytes(),
+        &ReadOptions::default(),
+    )
+    .unwrap_err());
+    assert!(
+        e.contains("line 2: expected one JSON object per line"),
+        "{e}"
+    );
+    let e = msg(read_pairs_bytes(
+        "t.jsonl",
+        Format::Jsonl,
+        format!("{line}\n{{\"x\": \n").as_bytes(),
+        &ReadOptions::default(),
+    )
+    .unwrap_err());
     assert!(e.contains("line 2:"), "{e}");
 }
 
@@ -209,14 +296,22 @@ fn override_columns_are_validated() {
     let e = msg(csv(&format!("{h}c1,PASSING,noise_10,1,1,1,a,a,maybe,0.25\n")).unwrap_err());
     assert!(e.contains("column `coc_changed`"), "{e}");
     let e = msg(csv(&format!("{h}c1,PASSING,noise_10,1,1,1,a,a,1,1.5\n")).unwrap_err());
-    assert!(e.contains("column `jaccard`") && e.contains("[0, 1]"), "{e}");
+    assert!(
+        e.contains("column `jaccard`") && e.contains("[0, 1]"),
+        "{e}"
+    );
 }
 
 fn check_no_panic(format: Format, bytes: &[u8]) {
     match read_pairs_bytes("fuzz", format, bytes, &ReadOptions::default()) {
         Ok(t) => {
             assert!(!t.is_empty());
-            assert!(t.ade_clean_m.iter().chain(&t.l2_m).all(|v| v.is_finite() && *v >= 0.0));
+            assert!(
+                t.ade_clean_m
+                    .iter()
+                    .chain(&t.l2_m)
+                    .all(|v| v.is_finite() && *v >= 0.0)
+            );
         }
         Err(e) => assert!(e.to_string().starts_with("fuzz"), "{e}"),
     }

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use rayon::prelude::*;
 
 use super::kernel::{KMAX, Model, Suff, pass};
-use super::kmeans::{Data, kmeans};
+use super::kmeans::{Data, SKLEARN_REL_TOL, kmeans};
 use crate::seed;
 
 /// scikit-learn adds `10·eps` to every component's responsibility sum so an empty component
@@ -20,6 +20,7 @@ pub(crate) struct Settings {
     pub reg_covar: f64,
     pub tol: f64,
     pub max_iter: usize,
+    pub sklearn_kmeans_max_n: usize,
 }
 
 /// One EM run's result, components ascending by mean.
@@ -75,7 +76,11 @@ pub(crate) fn em(xs: &[f64], b: &[usize], s: &Settings) -> EmFit {
     for j in 0..k {
         let seg = &xs[b[j]..b[j + 1]];
         let nk = seg.len() as f64 + NK_GUARD;
-        let mean = if seg.is_empty() { xs[b[j].min(n - 1)] } else { seg.iter().sum::<f64>() / nk };
+        let mean = if seg.is_empty() {
+            xs[b[j].min(n - 1)]
+        } else {
+            seg.iter().sum::<f64>() / nk
+        };
         let ss: f64 = seg.iter().map(|&v| (v - mean) * (v - mean)).sum();
         w[j] = nk / n as f64;
         mu[j] = mean;
@@ -108,18 +113,25 @@ pub(crate) fn em(xs: &[f64], b: &[usize], s: &Settings) -> EmFit {
 
 /// Runs a batch of fits `(k, seed)` on `d`, each as `Gmm1d::fit` with `n_components = k` and
 /// `seed`: start `i` is initialised by k-means with stream `seed::rng(seed, &[i])`, and the
-/// start with the greatest final lower bound wins (the first on ties). EM runs once per
+/// start with the greatest final lower bound wins (the first on ties). Lloyd iterations stop by
+/// scikit-learn's rule when `n ≤ sklearn_kmeans_max_n` and run until the labels repeat
+/// otherwise. EM runs once per
 /// distinct (k, partition); all k-means runs and all EM runs go in parallel and are collected
 /// in index order, so results do not depend on the thread count.
 ///
 /// Returns the distinct EM results and, per fit, the index of its winning result.
 pub(crate) fn fit_many(d: &Data, fits: &[(usize, u64)], s: &Settings) -> (Vec<EmFit>, Vec<usize>) {
+    let rel_tol = if d.xs.len() <= s.sklearn_kmeans_max_n {
+        SKLEARN_REL_TOL
+    } else {
+        0.0
+    };
     let parts: Vec<Vec<Vec<usize>>> = fits
         .par_iter()
         .map(|&(k, sd)| {
             (0..s.n_init)
                 .into_par_iter()
-                .map(|i| kmeans(d, k, &mut seed::rng(sd, &[i as u64])))
+                .map(|i| kmeans(d, k, &mut seed::rng(sd, &[i as u64]), rel_tol))
                 .collect()
         })
         .collect();
@@ -140,11 +152,6 @@ pub(crate) fn fit_many(d: &Data, fits: &[(usize, u64)], s: &Settings) -> (Vec<Em
         })
         .collect();
     let results: Vec<EmFit> = unique.par_iter().map(|b| em(&d.xs, b, s)).collect();
-    if std::env::var("GMM_DEBUG").is_ok() {
-        let it: usize = results.iter().map(|r| r.n_iter).sum();
-        let work: usize = results.iter().map(|r| r.n_iter * r.means.len()).sum();
-        eprintln!("fit_many: {} fits, {} starts, {} unique, {} iterations, {} k-iterations, n {}", fits.len(), fits.len() * s.n_init, unique.len(), it, work, d.xs.len());
-    }
     let pick = ids
         .iter()
         .map(|starts| {
@@ -166,9 +173,21 @@ mod tests {
 
     #[test]
     fn one_component_is_the_sample_moments() {
-        let xs: Vec<f64> = (0..1001).map(|i| ((i * 7919) % 1009) as f64 / 17.0 + 3.0).collect();
+        let xs: Vec<f64> = (0..1001)
+            .map(|i| ((i * 7919) % 1009) as f64 / 17.0 + 3.0)
+            .collect();
         let d = Data::new(xs.clone());
-        let f = em(&d.xs, &[0, xs.len()], &Settings { n_init: 1, reg_covar: 1e-6, tol: 1e-3, max_iter: 200 });
+        let f = em(
+            &d.xs,
+            &[0, xs.len()],
+            &Settings {
+                n_init: 1,
+                reg_covar: 1e-6,
+                tol: 1e-3,
+                max_iter: 200,
+                sklearn_kmeans_max_n: 0,
+            },
+        );
         let n = xs.len() as f64;
         let mean = xs.iter().sum::<f64>() / n;
         let var = xs.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;

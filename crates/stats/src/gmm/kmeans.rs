@@ -12,9 +12,9 @@ use rand_chacha::ChaCha8Rng;
 
 /// Lloyd iterations at most (scikit-learn's `KMeans` default `max_iter`).
 const LLOYD_MAX_ITER: usize = 300;
-/// Lloyd stops when the squared centre shift is at most this times the data variance
-/// (scikit-learn's `tol=1e-4`, scaled by the mean feature variance).
-const LLOYD_REL_TOL: f64 = 1e-4;
+/// scikit-learn's `KMeans` stopping rule: Lloyd stops when the squared centre shift is at most
+/// this times the data variance (`tol=1e-4`, scaled by the mean feature variance).
+pub(crate) const SKLEARN_REL_TOL: f64 = 1e-4;
 
 /// Data sorted ascending with prefix sums of `x − shift` and `(x − shift)²`.
 #[derive(Debug, Clone)]
@@ -35,9 +35,21 @@ impl Data {
     pub fn new(mut xs: Vec<f64>) -> Data {
         xs.sort_unstable_by(f64::total_cmp);
         let n = xs.len();
-        let n_distinct = if n == 0 { 0 } else { 1 + xs.windows(2).filter(|w| w[0] != w[1]).count() };
-        let shift = if n == 0 { 0.0 } else { xs.iter().sum::<f64>() / n as f64 };
-        let var = if n == 0 { 0.0 } else { xs.iter().map(|&v| (v - shift) * (v - shift)).sum::<f64>() / n as f64 };
+        let n_distinct = if n == 0 {
+            0
+        } else {
+            1 + xs.windows(2).filter(|w| w[0] != w[1]).count()
+        };
+        let shift = if n == 0 {
+            0.0
+        } else {
+            xs.iter().sum::<f64>() / n as f64
+        };
+        let var = if n == 0 {
+            0.0
+        } else {
+            xs.iter().map(|&v| (v - shift) * (v - shift)).sum::<f64>() / n as f64
+        };
         let mut p1 = Vec::with_capacity(n + 1);
         let mut p2 = Vec::with_capacity(n + 1);
         let (mut s1, mut s2) = (0.0, 0.0);
@@ -50,7 +62,14 @@ impl Data {
             p1.push(s1);
             p2.push(s2);
         }
-        Data { xs, n_distinct, var, shift, p1, p2 }
+        Data {
+            xs,
+            n_distinct,
+            var,
+            shift,
+            p1,
+            p2,
+        }
     }
 
     /// `Σ_{i∈[a,b)} (x_i − c)²`, clamped at 0.
@@ -81,7 +100,9 @@ impl Data {
 
     fn potential(&self, centres: &[f64]) -> f64 {
         let b = self.boundaries(centres);
-        (0..centres.len()).map(|j| self.cost(b[j], b[j + 1], centres[j])).sum()
+        (0..centres.len())
+            .map(|j| self.cost(b[j], b[j + 1], centres[j]))
+            .sum()
     }
 
     /// The point farthest from its nearest centre (ascending `centres`).
@@ -169,11 +190,12 @@ fn plusplus(d: &Data, k: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
 }
 
 /// Lloyd iterations as scikit-learn's `_kmeans_single_lloyd`: stop when the labels repeat
-/// (strict convergence) or the squared centre shift is at most `1e-4·var(x)`, at most 300
-/// iterations; then label by the final centres. An empty cluster is moved to the point
-/// farthest from its centre. Returns the cluster boundaries.
-fn lloyd(d: &Data, mut c: Vec<f64>) -> Vec<usize> {
-    let tol = LLOYD_REL_TOL * d.var;
+/// (strict convergence) or the squared centre shift is at most `rel_tol·var(x)` (scikit-learn:
+/// [`SKLEARN_REL_TOL`]; 0 runs until the labels repeat), at most 300 iterations; then label
+/// by the final centres. An empty cluster is moved to the point farthest from its centre.
+/// Returns the cluster boundaries.
+fn lloyd(d: &Data, mut c: Vec<f64>, rel_tol: f64) -> Vec<usize> {
+    let tol = rel_tol * d.var;
     let k = c.len();
     let mut old: Option<Vec<usize>> = None;
     for _ in 0..LLOYD_MAX_ITER {
@@ -191,9 +213,25 @@ fn lloyd(d: &Data, mut c: Vec<f64>) -> Vec<usize> {
             }
         }
         if empty {
+            // Move empty clusters to the points farthest from their centres, one point each
+            // (scikit-learn's `_relocate_empty_clusters`; in 1-D the candidates are the ends of
+            // the non-empty clusters).
+            let mut far: Vec<(f64, f64)> = Vec::new();
             for j in 0..k {
-                if b[j] == b[j + 1] {
-                    cn[j] = d.farthest(&c, &b);
+                if b[j] < b[j + 1] {
+                    for v in [d.xs[b[j]], d.xs[b[j + 1] - 1]] {
+                        far.push(((v - c[j]).abs(), v));
+                    }
+                }
+            }
+            far.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.total_cmp(&b.1)));
+            far.dedup_by(|a, b| a.1 == b.1);
+            let mut next = far.iter();
+            for j in 0..k {
+                if b[j] == b[j + 1]
+                    && let Some(&(_, v)) = next.next()
+                {
+                    cn[j] = v;
                 }
             }
         }
@@ -209,11 +247,11 @@ fn lloyd(d: &Data, mut c: Vec<f64>) -> Vec<usize> {
 }
 
 /// k-means partition of `d` into `k` clusters (`1 ≤ k ≤ d.n_distinct`): boundaries
-/// `b[0] = 0 ≤ … ≤ b[k] = n`. Cost `O(k² log n)` per seeding step and `O(k log n)` per Lloyd
-/// iteration, after the `O(n log n)` of [`Data::new`].
-pub(crate) fn kmeans(d: &Data, k: usize, rng: &mut ChaCha8Rng) -> Vec<usize> {
+/// `b[0] = 0 ≤ … ≤ b[k] = n`; `rel_tol` as in [`lloyd`]. Cost `O(k² log n)` per seeding step
+/// and `O(k log n)` per Lloyd iteration, after the `O(n log n)` of [`Data::new`].
+pub(crate) fn kmeans(d: &Data, k: usize, rng: &mut ChaCha8Rng, rel_tol: f64) -> Vec<usize> {
     let centres = plusplus(d, k, rng);
-    lloyd(d, centres)
+    lloyd(d, centres, rel_tol)
 }
 
 #[cfg(test)]
@@ -231,7 +269,7 @@ mod tests {
         }
         let d = Data::new(xs);
         for s in 0..20 {
-            let b = kmeans(&d, 3, &mut ChaCha8Rng::seed_from_u64(s));
+            let b = kmeans(&d, 3, &mut ChaCha8Rng::seed_from_u64(s), SKLEARN_REL_TOL);
             assert_eq!(b, vec![0, 100, 200, 300]);
         }
     }
@@ -254,7 +292,7 @@ mod tests {
         let d = Data::new(vec![1.0, 1.0, 1.0, 1.0, 2.0, 2.0, 5.0]);
         assert_eq!(d.n_distinct, 3);
         for s in 0..20 {
-            let b = kmeans(&d, 3, &mut ChaCha8Rng::seed_from_u64(s));
+            let b = kmeans(&d, 3, &mut ChaCha8Rng::seed_from_u64(s), SKLEARN_REL_TOL);
             assert_eq!(b, vec![0, 4, 6, 7]);
         }
     }
