@@ -251,6 +251,34 @@ pub(crate) fn bootstrap(
         delta: Vec<Vec<Vec<f64>>>,
     }
 
+    // Each stratum's clips packed contiguously, each row holding only what a draw adds:
+    // [clean, attacked × ns] when the clean ADE is one value per clip, [clean × ns,
+    // attacked × ns] when counts are all 1, else [clean, attacked, counts] × ns. The sums are
+    // the same additions in the same order whichever layout is used.
+    let width = if slots.uniform_clean {
+        ns + 1
+    } else if slots.uniform {
+        2 * ns
+    } else {
+        stride
+    };
+    let packed: Vec<Vec<f64>> = strata_clips
+        .iter()
+        .map(|clips| {
+            let mut v = Vec::with_capacity(clips.len() * width);
+            for &k in clips {
+                let c = slots.clip(k);
+                if slots.uniform_clean {
+                    v.push(c[0]);
+                    v.extend_from_slice(&c[ns..2 * ns]);
+                } else {
+                    v.extend_from_slice(&c[..width]);
+                }
+            }
+            v
+        })
+        .collect();
+
     let chunks: Vec<ChunkOut> = (0..n_chunks)
         .into_par_iter()
         .map(|c| {
@@ -272,38 +300,29 @@ pub(crate) fn bootstrap(
             let mut gsum = vec![0.0; stride];
             let mut mc = vec![0.0; ns];
             let mut ma = vec![0.0; ns];
-            // When every clip has exactly one pair per slot, counts are the number of draws.
-            let summed = if slots.uniform { 2 * ns } else { stride };
+            let mut acc_w = vec![0.0; width];
             for _ in lo..hi {
-                for (s, clips) in strata_clips.iter().enumerate() {
+                for (s, rows) in packed.iter().enumerate() {
                     let acc = &mut stratum_sum[s * stride..(s + 1) * stride];
                     acc.fill(0.0);
-                    let n = clips.len();
+                    let n = strata_clips[s].len();
                     if n == 0 {
                         continue;
                     }
                     let rng = &mut rngs[s];
+                    acc_w.fill(0.0);
+                    for _ in 0..n {
+                        let k = rng.random_range(0..n);
+                        let row = &rows[k * width..(k + 1) * width];
+                        for (a, v) in acc_w.iter_mut().zip(row) {
+                            *a += v;
+                        }
+                    }
                     if slots.uniform_clean {
-                        // acc[ns - 1] holds the clean sum, acc[ns..2ns] the attacked sums.
-                        let acc_sum = &mut acc[ns - 1..2 * ns];
-                        for _ in 0..n {
-                            let k = clips[rng.random_range(0..n)];
-                            let v = &slots.clip(k)[ns - 1..2 * ns];
-                            for (a, v) in acc_sum.iter_mut().zip(v) {
-                                *a += v;
-                            }
-                        }
-                        let c = acc[ns - 1];
-                        acc[..ns - 1].fill(c);
+                        acc[..ns].fill(acc_w[0]);
+                        acc[ns..2 * ns].copy_from_slice(&acc_w[1..]);
                     } else {
-                        let acc_sum = &mut acc[..summed];
-                        for _ in 0..n {
-                            let k = clips[rng.random_range(0..n)];
-                            let v = &slots.clip(k)[..summed];
-                            for (a, v) in acc_sum.iter_mut().zip(v) {
-                                *a += v;
-                            }
-                        }
+                        acc[..width].copy_from_slice(&acc_w);
                     }
                     if slots.uniform {
                         acc[2 * ns..].fill(n as f64);

@@ -24,19 +24,25 @@ fn write_pairs(dir: &Path, n_clips: usize) -> std::path::PathBuf {
 
 const QUICK: [&str; 6] = ["--bootstrap", "300", "--restarts", "3", "--k-max", "6"];
 
-#[test]
-fn envelope_writes_the_three_files_and_prints_their_paths() {
-    let dir = tempfile::tempdir().unwrap();
-    let pairs = write_pairs(dir.path(), 400);
-    let out = dir.path().join("out");
+/// Runs `fogline envelope PAIRS --out OUT <extra> <QUICK>`.
+fn envelope_quick(pairs: &Path, out: &Path, extra: &[&str]) -> Output {
     let mut args = vec![
         "envelope",
         pairs.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ];
+    args.extend(extra);
     args.extend(QUICK);
-    let o = fogline(&args);
+    fogline(&args)
+}
+
+#[test]
+fn envelope_writes_the_three_files_and_prints_their_paths() {
+    let dir = tempfile::tempdir().unwrap();
+    let pairs = write_pairs(dir.path(), 400);
+    let out = dir.path().join("out");
+    let o = envelope_quick(&pairs, &out, &[]);
     assert_eq!(
         o.status.code(),
         Some(0),
@@ -148,15 +154,7 @@ fn json_summary_on_stdout() {
     let dir = tempfile::tempdir().unwrap();
     let pairs = write_pairs(dir.path(), 120);
     let out = dir.path().join("o");
-    let mut args = vec![
-        "envelope",
-        pairs.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ];
-    args.extend(QUICK);
-    let o = fogline(&args);
+    let o = envelope_quick(&pairs, &out, &["--json"]);
     assert_eq!(o.status.code(), Some(0));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
     assert_eq!(v["n_pairs"], 960);
@@ -167,14 +165,7 @@ fn bad_input_exits_2_with_the_error_chain_and_keeps_previous_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let pairs = write_pairs(dir.path(), 60);
     let out = dir.path().join("out");
-    let mut args = vec![
-        "envelope",
-        pairs.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend(QUICK);
-    assert_eq!(fogline(&args).status.code(), Some(0));
+    assert_eq!(envelope_quick(&pairs, &out, &[]).status.code(), Some(0));
     let before = std::fs::read(out.join("envelope.json")).unwrap();
 
     let bad = dir.path().join("bad.csv");
@@ -247,16 +238,7 @@ fn a_failed_acceptance_gate_exits_1() {
     let dir = tempfile::tempdir().unwrap();
     let pairs = write_pairs(dir.path(), 400);
     let out = dir.path().join("out");
-    let mut args = vec![
-        "envelope",
-        pairs.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--pi-star",
-        "0",
-    ];
-    args.extend(QUICK);
-    let o = fogline(&args);
+    let o = envelope_quick(&pairs, &out, &["--pi-star", "0"]);
     assert_eq!(
         o.status.code(),
         Some(1),
@@ -268,18 +250,12 @@ fn a_failed_acceptance_gate_exits_1() {
         out.join("odd.json").is_file(),
         "outputs are written before the gate"
     );
-    let mut args = vec![
-        "envelope",
-        pairs.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--pi-star",
-        "1",
-        "--sigma-op",
-        "10",
-    ];
-    args.extend(QUICK);
-    assert_eq!(fogline(&args).status.code(), Some(0));
+    assert_eq!(
+        envelope_quick(&pairs, &out, &["--pi-star", "1", "--sigma-op", "10"])
+            .status
+            .code(),
+        Some(0)
+    );
 }
 
 #[test]

@@ -4,3 +4,4 @@
 
 mod architecture;
 mod envelope_cmd;
+mod perturb_cmd;
