@@ -95,22 +95,45 @@ fn run_peer(csv: &Path, p: &EnvelopeParams) -> Result<PeerResult, String> {
     let wall_secs = secs(t);
     if !out.status.success() {
         let stderr = String::from_utf8_lossy(&out.stderr);
-        let last = stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message");
+        let last = stderr
+            .lines()
+            .rev()
+            .find(|l| !l.trim().is_empty())
+            .unwrap_or("no message");
         return Err(format!("{python} exited with {}: {last}", out.status));
     }
     let stdout = String::from_utf8_lossy(&out.stdout);
-    let line = stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or("");
-    let v: serde_json::Value =
-        serde_json::from_str(line).map_err(|e| format!("cannot parse the peer's report {line:?}: {e}"))?;
-    let seconds = v["seconds"].as_f64().ok_or("the peer's report has no \"seconds\"")?;
+    let line = stdout
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+        .unwrap_or("");
+    let v: serde_json::Value = serde_json::from_str(line)
+        .map_err(|e| format!("cannot parse the peer's report {line:?}: {e}"))?;
+    let seconds = v["seconds"]
+        .as_f64()
+        .ok_or("the peer's report has no \"seconds\"")?;
     let mut phases: Vec<(String, f64)> = v["phases"]
         .as_object()
-        .map(|m| m.iter().filter_map(|(k, x)| Some((k.clone(), x.as_f64()?))).collect())
+        .map(|m| {
+            m.iter()
+                .filter_map(|(k, x)| Some((k.clone(), x.as_f64()?)))
+                .collect()
+        })
         .unwrap_or_default();
     // The peer's order (serde_json's map is sorted by key); unknown phases last.
-    let pos = |k: &str| PEER_PHASES.iter().position(|p| *p == k).unwrap_or(PEER_PHASES.len());
+    let pos = |k: &str| {
+        PEER_PHASES
+            .iter()
+            .position(|p| *p == k)
+            .unwrap_or(PEER_PHASES.len())
+    };
     phases.sort_by_key(|(k, _)| pos(k));
-    Ok(PeerResult { seconds, wall_secs, phases })
+    Ok(PeerResult {
+        seconds,
+        wall_secs,
+        phases,
+    })
 }
 
 fn goal(ok: bool) -> &'static str {
@@ -159,8 +182,14 @@ fn paper_sized(dir: &Path) {
 
     // Breakdown of analyze from public entry points. The variants are interleaved and the
     // minimum of BREAKDOWN_RUNS is kept: differences of minima are robust to load noise.
-    let no_boot = EnvelopeParams { bootstrap: 0, ..p.clone() };
-    let l2: Vec<f64> = (0..table.len()).filter(|&r| table.changed[r]).map(|r| table.l2_m[r]).collect();
+    let no_boot = EnvelopeParams {
+        bootstrap: 0,
+        ..p.clone()
+    };
+    let l2: Vec<f64> = (0..table.len())
+        .filter(|&r| table.changed[r])
+        .map(|r| table.l2_m[r])
+        .collect();
     let sel = gmm::SelectParams {
         k_max: p.k_max,
         restarts: p.restarts,
@@ -169,13 +198,17 @@ fn paper_sized(dir: &Path) {
         seed: p.seed,
         ..gmm::SelectParams::default()
     };
-    let sel_no_cv = gmm::SelectParams { cv_folds: 0, ..sel.clone() };
+    let sel_no_cv = gmm::SelectParams {
+        cv_folds: 0,
+        ..sel.clone()
+    };
     let timed = |f: &dyn Fn()| {
         let t = Instant::now();
         f();
         secs(t)
     };
-    let (mut b_full, mut b_no_boot, mut b_sel, mut b_sel_no_cv) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut b_full, mut b_no_boot, mut b_sel, mut b_sel_no_cv) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for _ in 0..BREAKDOWN_RUNS {
         b_full.push(timed(&|| {
             std::hint::black_box(analyze(&table, &p).expect("analyses"));
@@ -190,17 +223,37 @@ fn paper_sized(dir: &Path) {
             std::hint::black_box(gmm::select_k(&l2, &sel_no_cv).expect("selects"));
         }));
     }
-    let (an_min, an_no_boot, select_secs, select_no_cv) = (min(&b_full), min(&b_no_boot), min(&b_sel), min(&b_sel_no_cv));
+    let (an_min, an_no_boot, select_secs, select_no_cv) = (
+        min(&b_full),
+        min(&b_no_boot),
+        min(&b_sel),
+        min(&b_sel_no_cv),
+    );
 
     println!();
     println!("rust      fogline read_pairs + analyze (warm-up + {RUNS} runs)");
     println!("  {:<44} {:>10} {:>10}", "", "median", "min");
-    println!("  {:<44} {:>7.1} ms {:>7.1} ms", "total", total_med * 1e3, total_min * 1e3);
-    println!("  {:<44} {:>7.1} ms", "read_pairs (CSV + text features)", read_med * 1e3);
+    println!(
+        "  {:<44} {:>7.1} ms {:>7.1} ms",
+        "total",
+        total_med * 1e3,
+        total_min * 1e3
+    );
+    println!(
+        "  {:<44} {:>7.1} ms",
+        "read_pairs (CSV + text features)",
+        read_med * 1e3
+    );
     println!("  {:<44} {:>7.1} ms", "analyze", an_med * 1e3);
-    println!("  breakdown of analyze (min of {BREAKDOWN_RUNS} interleaved runs; differences are approximate)");
+    println!(
+        "  breakdown of analyze (min of {BREAKDOWN_RUNS} interleaved runs; differences are approximate)"
+    );
     println!("  {:<44} {:>7.1} ms", "  analyze (min)", an_min * 1e3);
-    println!("  {:<44} {:>7.1} ms", "  bootstrap (analyze − analyze w/o bootstrap)", (an_min - an_no_boot) * 1e3);
+    println!(
+        "  {:<44} {:>7.1} ms",
+        "  bootstrap (analyze − analyze w/o bootstrap)",
+        (an_min - an_no_boot) * 1e3
+    );
     println!(
         "  {:<44} {:>7.1} ms",
         format!("  gmm::select_k on {} changed pairs", thousands(l2.len())),
@@ -211,7 +264,11 @@ fn paper_sized(dir: &Path) {
         format!("    BIC study ({} restarts × k 1..{})", p.restarts, p.k_max),
         select_no_cv * 1e3
     );
-    println!("  {:<44} {:>7.1} ms", "    5-fold CV (difference)", (select_secs - select_no_cv) * 1e3);
+    println!(
+        "  {:<44} {:>7.1} ms",
+        "    5-fold CV (difference)",
+        (select_secs - select_no_cv) * 1e3
+    );
     println!(
         "  {:<44} {:>7.1} ms",
         "  rest (per-scenario GMMs, stats, tables)",
@@ -222,14 +279,25 @@ fn paper_sized(dir: &Path) {
     match run_peer(&csv, &p) {
         Ok(py) => {
             println!("python    envelope_peer.py (1 run, OMP/OPENBLAS/MKL threads = 1)");
-            println!("  {:<44} {:>7.2} s", "total (timed inside the script)", py.seconds);
+            println!(
+                "  {:<44} {:>7.2} s",
+                "total (timed inside the script)", py.seconds
+            );
             for (name, s) in &py.phases {
                 println!("  {:<44} {:>7.3} s", format!("  {name}"), s);
             }
-            println!("  {:<44} {:>7.2} s", "wall, incl. interpreter start and imports", py.wall_secs);
+            println!(
+                "  {:<44} {:>7.2} s",
+                "wall, incl. interpreter start and imports", py.wall_secs
+            );
             let ratio = py.seconds / total_med;
             println!();
-            println!("summary   rust {:.1} ms (median)   python {:.2} s   python/rust {:.1}×", total_med * 1e3, py.seconds, ratio);
+            println!(
+                "summary   rust {:.1} ms (median)   python {:.2} s   python/rust {:.1}×",
+                total_med * 1e3,
+                py.seconds,
+                ratio
+            );
             println!(
                 "goals     rust ≤ 0.25 s: {}   ≥ 30× python: {}",
                 goal(total_med <= 0.25),
@@ -238,9 +306,14 @@ fn paper_sized(dir: &Path) {
         }
         Err(why) => {
             println!("python    peer skipped: {why}");
-            println!("          (needs python3 with numpy, scipy, scikit-learn and pandas; set FOGLINE_PYTHON to choose the interpreter)");
+            println!(
+                "          (needs python3 with numpy, scipy, scikit-learn and pandas; set FOGLINE_PYTHON to choose the interpreter)"
+            );
             println!();
-            println!("summary   rust {:.1} ms (median)   python skipped", total_med * 1e3);
+            println!(
+                "summary   rust {:.1} ms (median)   python skipped",
+                total_med * 1e3
+            );
             println!("goals     rust ≤ 0.25 s: {}", goal(total_med <= 0.25));
         }
     }
@@ -255,7 +328,10 @@ fn large(dir: &Path) {
     let bytes = match write_corpus(&csv, LARGE_CLIPS) {
         Ok(b) => b,
         Err(e) => {
-            println!("large     skipped: cannot write {} ({e}); about 1.5 GB of free space is needed", csv.display());
+            println!(
+                "large     skipped: cannot write {} ({e}); about 1.5 GB of free space is needed",
+                csv.display()
+            );
             let _ = std::fs::remove_file(&csv);
             return;
         }
@@ -280,30 +356,112 @@ fn large(dir: &Path) {
     let peak = peak_rss_mb();
     let chosen_k = env.severity.chosen_k;
     drop(env);
-    drop(table);
     let _ = std::fs::remove_file(&csv);
     let mb = |v: Option<f64>| v.map_or("n/a".to_string(), |m| format!("{m:.0} MB"));
     println!("rust      fogline read_pairs + analyze (1 run, default params)");
     println!("  {:<44} {:>9.1} s", "total", read + an);
     println!("  {:<44} {:>9.1} s", "read_pairs", read);
     println!("  {:<44} {:>9.1} s", "analyze", an);
-    println!("  {:<44} {:>11}", "peak RSS after read_pairs (VmHWM)", mb(peak_read));
-    println!("  {:<44} {:>11}", "peak RSS after analyze (VmHWM)", mb(peak));
+    println!(
+        "  {:<44} {:>11}",
+        "peak RSS after read_pairs (VmHWM)",
+        mb(peak_read)
+    );
+    println!(
+        "  {:<44} {:>11}",
+        "peak RSS after analyze (VmHWM)",
+        mb(peak)
+    );
     if !reset {
-        println!("  (could not reset VmHWM; the peak includes the earlier runs: {})", mb(before));
+        println!(
+            "  (could not reset VmHWM; the peak includes the earlier runs: {})",
+            mb(before)
+        );
     }
-    println!("  {:<44} {:>11}", "chosen k", chosen_k.map_or("-".to_string(), |k| k.to_string()));
+    println!(
+        "  {:<44} {:>11}",
+        "chosen k",
+        chosen_k.map_or("-".to_string(), |k| k.to_string())
+    );
     println!(
         "goals     ≤ 60 s: {}   ≤ 4 GB: {}",
         goal(read + an <= 60.0),
         peak.map_or("unknown", |m| goal(m <= 4000.0))
+    );
+
+    // Where the time goes: one run of each part on its own (after the measured run).
+    let t = Instant::now();
+    std::hint::black_box(
+        analyze(
+            &table,
+            &EnvelopeParams {
+                bootstrap: 0,
+                ..p.clone()
+            },
+        )
+        .expect("analyses"),
+    );
+    let an_no_boot = secs(t);
+    let l2: Vec<f64> = (0..table.len())
+        .filter(|&r| table.changed[r])
+        .map(|r| table.l2_m[r])
+        .collect();
+    let sel = gmm::SelectParams {
+        k_max: p.k_max,
+        restarts: p.restarts,
+        n_init: p.n_init,
+        cv_folds: p.cv_folds,
+        seed: p.seed,
+        ..gmm::SelectParams::default()
+    };
+    let t = Instant::now();
+    std::hint::black_box(
+        gmm::select_k(
+            &l2,
+            &gmm::SelectParams {
+                cv_folds: 0,
+                ..sel.clone()
+            },
+        )
+        .expect("selects"),
+    );
+    let bic_secs = secs(t);
+    let t = Instant::now();
+    std::hint::black_box(gmm::select_k(&l2, &sel).expect("selects"));
+    let select_secs = secs(t);
+    println!("  breakdown of analyze (one run each, after the measured run)");
+    println!(
+        "  {:<44} {:>9.1} s",
+        "  bootstrap (analyze − analyze w/o bootstrap)",
+        an - an_no_boot
+    );
+    println!(
+        "  {:<44} {:>9.1} s",
+        format!("  gmm::select_k on {} changed pairs", thousands(l2.len())),
+        select_secs
+    );
+    println!(
+        "  {:<44} {:>9.1} s",
+        format!("    BIC study ({} restarts × k 1..{})", p.restarts, p.k_max),
+        bic_secs
+    );
+    println!(
+        "  {:<44} {:>9.1} s",
+        "    5-fold CV (difference)",
+        select_secs - bic_secs
+    );
+    println!(
+        "  {:<44} {:>9.1} s",
+        "  rest (per-scenario GMMs, stats, tables)",
+        an_no_boot - select_secs
     );
 }
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let large_on = args.iter().any(|a| a == "--large")
-        || std::env::var("FOGLINE_BENCH_LARGE").is_ok_and(|v| v == "1" || v.eq_ignore_ascii_case("true"));
+        || std::env::var("FOGLINE_BENCH_LARGE")
+            .is_ok_and(|v| v == "1" || v.eq_ignore_ascii_case("true"));
     println!("fogline envelope benchmark");
     let dir = TempDir::new("envelope").expect("can create a temporary directory");
     paper_sized(dir.path());

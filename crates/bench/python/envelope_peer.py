@@ -302,9 +302,9 @@ def clip_slot_matrix(df, axes, slot_of):
 def dose_and_thresholds(df, p, axes, slot_of, names, strata, classified):
     """Dose-response points and thresholds (both rules) per group, axis and budget."""
     offsets = np.cumsum([0] + [len(a["levels"]) for a in axes])
-    df = df[df["attack"].isin(slot_of)]
-    slot = np.array([offsets[slot_of[c][0]] + slot_of[c][1] for c in df["attack"]])
     clips_of = df.groupby("scenario")["clip_id"].nunique().to_dict()
+    df = df[df["attack"].isin(list(slot_of))]
+    slot = np.array([offsets[slot_of[c][0]] + slot_of[c][1] for c in df["attack"]])
     dose, thresholds, outcomes = [], [], {}
     for g, (name, ss) in enumerate(zip(names, strata)):
         sub = df[df["scenario"].isin(ss)]
@@ -629,7 +629,7 @@ def statistics(df, p, slot_of):
         out["l2_ratio"] = (out["mean_l2_changed_m"] / out["mean_l2_unchanged_m"]
                            if len(l2c) and len(l2u) and l2u.mean() > 0 else None)
 
-        per_cond = (df[df["attack"].isin(slot_of)]
+        per_cond = (df[df["attack"].isin(list(slot_of))]
                     .groupby("attack").agg(rate=("changed", "mean"), l2=("l2", "mean")))
         out["change_rate_vs_l2"] = (corr_dict(stats.pearsonr(per_cond["rate"], per_cond["l2"]),
                                               len(per_cond)) if len(per_cond) >= 2 else None)

@@ -4,6 +4,8 @@
 //! stderr and prints its primary output on stdout. Exit codes: 0 success, 1 a gate failed
 //! (e.g. a scenario rejected under `--pi-star`), 2 error (the whole error chain is printed).
 
+mod perturb_cmd;
+
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -45,6 +47,13 @@ enum Command {
     /// Run the whole pipeline offline on built-in data and write a report.
     #[command(after_help = "Example:\n  fogline demo --out fogline-demo")]
     Demo(DemoArgs),
+    /// Perturb a directory of frames (PNG/JPEG): noise, gain, fog, blur, JPEG, masks, faults.
+    #[command(
+        after_help = "Examples:\n  fogline perturb --input frames/ --output frames-noise30/ --condition noise_30 --seed 7\n  fogline perturb --input frames/ --output masked/ --condition mask_class_pedestrian --boxes boxes.jsonl\n  fogline perturb --input frames/ --output fog/ --condition fog_07 --depth depth/"
+    )]
+    Perturb(Box<perturb_cmd::PerturbArgs>),
+    /// Benchmarks.
+    Bench(perturb_cmd::BenchArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -190,6 +199,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Envelope(a) => envelope(*a),
         Command::Demo(a) => demo(a),
+        Command::Perturb(a) => perturb_cmd::perturb(*a),
+        Command::Bench(a) => perturb_cmd::bench(a),
     }
 }
 
@@ -287,12 +298,21 @@ fn gate(env: &Envelope) -> ExitCode {
 /// Writes `bytes` to `path` through a temporary file in the same directory, so a reader
 /// never sees a half-written file and a failure leaves the previous file in place.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_with(path, |w| w.write_all(bytes))
+}
+
+/// [`write_atomic`] for content streamed by `fill`.
+fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
     let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
     let res = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
+        fill(&mut w)?;
+        let f = w.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();
@@ -428,10 +448,7 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
         seed: a.seed,
     };
     let pairs = a.out.join("pairs.csv");
-    let mut csv = Vec::new();
-    fogline_envelope::synthetic::write_csv(&sp, &mut csv)
-        .context("cannot render the synthetic corpus")?;
-    write_atomic(&pairs, &csv)?;
+    write_atomic_with(&pairs, |w| fogline_envelope::synthetic::write_csv(&sp, w))?;
     log::info!("wrote {}", pairs.display());
     let table = fogline_envelope::read_pairs(&pairs, &ReadOptions::default())?;
     let t = std::time::Instant::now();

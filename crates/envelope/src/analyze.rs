@@ -8,7 +8,7 @@ use fogline_types::Taxonomy;
 use crate::error::{EnvelopeError, Result};
 use crate::input::PairTable;
 use crate::model::*;
-use crate::params::{Bands, EnvelopeParams, TaxonomyChoice};
+use crate::params::{Bands, BootstrapMethod, EnvelopeParams, TaxonomyChoice};
 use crate::threshold::{self, ClipSlots, Groups, Outcome};
 
 /// Analyses a pairs table (sections 3–7 and tables 1–5 of the envelope paper).
@@ -148,6 +148,19 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         (mc, ma, cnt)
     };
     let clock = std::time::Instant::now();
+    let resampling = match p.bootstrap_method {
+        BootstrapMethod::Multinomial => threshold::Resampling::Multinomial,
+        BootstrapMethod::Poisson => threshold::Resampling::Poisson,
+        BootstrapMethod::Auto if t.clip_ids.len() > p.poisson_min_clips => {
+            notes.push(format!(
+                "{} clips (more than {}): the bootstrap uses Poisson(1) clip weights",
+                t.clip_ids.len(),
+                p.poisson_min_clips
+            ));
+            threshold::Resampling::Poisson
+        }
+        BootstrapMethod::Auto => threshold::Resampling::Multinomial,
+    };
     let boot = (p.bootstrap > 0).then(|| {
         threshold::bootstrap(
             &slots,
@@ -158,6 +171,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             p.rule,
             p.bootstrap,
             p.seed,
+            resampling,
         )
     });
 
@@ -679,6 +693,11 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
         generated_by: format!("fogline-envelope {}", env!("CARGO_PKG_VERSION")),
         input: t.input.clone(),
         parameters: p.clone(),
+        bootstrap_method: match (p.bootstrap, resampling) {
+            (0, _) => "none",
+            (_, threshold::Resampling::Multinomial) => "multinomial",
+            (_, threshold::Resampling::Poisson) => "poisson",
+        },
         conventions,
         corpus: Corpus {
             n_pairs: t.len(),

@@ -20,12 +20,12 @@
 //! looks like. Every error names the file, the row (CSV/JSONL: line number; Parquet: 1-based
 //! data row) and the column.
 
-use std::collections::HashMap;
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use fogline_types::{Condition, Family};
+use rustc_hash::FxHashMap as HashMap;
 use sha2::{Digest, Sha256};
 
 use crate::error::{EnvelopeError, Result};
@@ -164,7 +164,8 @@ pub fn read_pairs(path: &Path, opts: &ReadOptions) -> Result<PairTable> {
         path: path.to_path_buf(),
         source,
     };
-    let sha256 = {
+    // Hash the file on one core while the other parses it.
+    let hash = || -> Result<String> {
         let mut f = File::open(path).map_err(io)?;
         let mut hasher = Sha256::new();
         let mut buf = vec![0u8; 1 << 20];
@@ -175,15 +176,21 @@ pub fn read_pairs(path: &Path, opts: &ReadOptions) -> Result<PairTable> {
             }
             hasher.update(&buf[..n]);
         }
-        hex(&hasher.finalize())
+        Ok(hex(&hasher.finalize()))
     };
-    let mut b = Builder::new(path, opts);
-    let file = File::open(path).map_err(io)?;
-    match format {
-        Format::Csv => read_csv(file, &mut b)?,
-        Format::Jsonl => read_jsonl(file, &mut b)?,
-        Format::Parquet => read_parquet(file, &mut b)?,
-    }
+    let parse = || -> Result<Builder<'_>> {
+        let mut b = Builder::new(path, opts);
+        let file = File::open(path).map_err(io)?;
+        match format {
+            Format::Csv => read_csv(file, &mut b)?,
+            Format::Jsonl => read_jsonl(file, &mut b)?,
+            Format::Parquet => read_parquet(file, &mut b)?,
+        }
+        Ok(b)
+    };
+    let (sha256, b) = rayon::join(hash, parse);
+    let b = b?;
+    let sha256 = sha256?;
     b.finish(InputInfo {
         path: path.display().to_string(),
         format,
@@ -448,6 +455,8 @@ struct Builder<'o> {
     /// Per clip, the conditions it has (bit per condition, 64 per word).
     clip_mask: Vec<Vec<u64>>,
     rows: Vec<u64>,
+    /// The last row's clip, scenario and condition numbers (rows usually come grouped).
+    last: Option<(u32, u32, u32)>,
     clip: Vec<u32>,
     condition: Vec<u32>,
     ade_clean: Vec<f64>,
@@ -465,17 +474,18 @@ impl<'o> Builder<'o> {
         Self {
             path: path.to_path_buf(),
             opts,
-            clip_index: HashMap::new(),
+            clip_index: HashMap::default(),
             clip_ids: Vec::new(),
             clip_scenario: Vec::new(),
             clip_first_row: Vec::new(),
-            scenario_index: HashMap::new(),
+            scenario_index: HashMap::default(),
             scenarios: Vec::new(),
-            condition_index: HashMap::new(),
+            condition_index: HashMap::default(),
             conditions: Vec::new(),
             condition_first_row: Vec::new(),
             clip_mask: Vec::new(),
             rows: Vec::new(),
+            last: None,
             clip: Vec::new(),
             condition: Vec::new(),
             ade_clean: Vec::new(),
@@ -551,8 +561,13 @@ impl<'o> Builder<'o> {
         let coc_attacked = self.text(row, Col::CocAttacked, get(Col::CocAttacked), true)?;
 
         // Condition: explicit family/level win over the name's grid meaning.
-        let cond = match self.condition_index.get(cond_name) {
-            Some(&c) => {
+        let last = self.last;
+        let cond = match last
+            .filter(|l| self.conditions[l.2 as usize].name == cond_name)
+            .map(|l| l.2)
+            .or_else(|| self.condition_index.get(cond_name).copied())
+        {
+            Some(c) => {
                 self.check_condition_consistent(row, c, get)?;
                 c
             }
@@ -566,8 +581,12 @@ impl<'o> Builder<'o> {
             }
         };
 
-        let scen = match self.scenario_index.get(scenario) {
-            Some(&s) => s,
+        let scen = match last
+            .filter(|l| self.scenarios[l.1 as usize] == scenario)
+            .map(|l| l.1)
+            .or_else(|| self.scenario_index.get(scenario).copied())
+        {
+            Some(s) => s,
             None => {
                 let s = self.scenarios.len() as u32;
                 self.scenarios.push(scenario.to_string());
@@ -575,8 +594,12 @@ impl<'o> Builder<'o> {
                 s
             }
         };
-        let clip = match self.clip_index.get(clip_id) {
-            Some(&k) => {
+        let clip = match last
+            .filter(|l| self.clip_ids[l.0 as usize] == clip_id)
+            .map(|l| l.0)
+            .or_else(|| self.clip_index.get(clip_id).copied())
+        {
+            Some(k) => {
                 if self.clip_scenario[k as usize] != scen {
                     return Err(EnvelopeError::ScenarioConflict {
                         path: self.path.clone(),
@@ -619,6 +642,7 @@ impl<'o> Builder<'o> {
             });
         }
         mask[word] |= 1 << bit;
+        self.last = Some((clip, scen, cond));
 
         let mut f = TextFeatures::compute(
             coc_clean,

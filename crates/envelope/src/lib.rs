@@ -35,7 +35,7 @@ pub use analyze::analyze;
 pub use error::{EnvelopeError, Result};
 pub use input::{PairTable, ReadOptions, read_pairs, read_pairs_bytes};
 pub use model::Envelope;
-pub use params::{Bands, EnvelopeParams, TaxonomyChoice, ThresholdRule};
+pub use params::{Bands, BootstrapMethod, EnvelopeParams, TaxonomyChoice, ThresholdRule};
 
 /// Every convention the paper leaves open, as fogline chooses it (recorded in the output).
 pub fn conventions(p: &EnvelopeParams) -> BTreeMap<String, String> {
@@ -58,6 +58,13 @@ pub fn conventions(p: &EnvelopeParams) -> BTreeMap<String, String> {
             model::AGG_CLASSIFIED,
             model::AGG_ALL,
             model::AGG_ALL
+        ),
+    );
+    put(
+        "bootstrap_method",
+        format!(
+            "multinomial (n clips drawn with replacement per scenario) by default; with `auto`, corpora of more than {} clips use the Poisson bootstrap (independent Poisson(1) clip weights, weighted means), which has the same large-sample behaviour and streams clips in order; the method used is in `bootstrap_method`",
+            p.poisson_min_clips
         ),
     );
     put("bootstrap", "clips resampled with replacement within each scenario label, each clip with all its conditions; aggregates are sums of their strata (stratified); ΔADE intervals are numpy-linear percentiles; σ* intervals are inverse-CDF quantiles on the ordinal scale none < levels (ties: the smaller level)".into());

@@ -28,6 +28,8 @@ pub struct Envelope {
     pub input: InputInfo,
     /// The parameters used.
     pub parameters: EnvelopeParams,
+    /// The bootstrap resampling actually used (`multinomial`, `poisson`, or `none`).
+    pub bootstrap_method: &'static str,
     /// Every convention the paper leaves open, as chosen here.
     pub conventions: BTreeMap<String, String>,
     /// What the corpus holds.

@@ -40,6 +40,20 @@ pub enum Bands {
     Fixed(usize),
 }
 
+/// How bootstrap resamples weight the clips of a scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum BootstrapMethod {
+    /// Multinomial up to `poisson_min_clips` clips in the corpus, Poisson beyond.
+    #[default]
+    Auto,
+    /// The classic bootstrap: n clips drawn with replacement from each scenario's n.
+    Multinomial,
+    /// The Poisson bootstrap: every clip gets an independent Poisson(1) weight; it streams
+    /// clips in order and scales to millions of clips.
+    Poisson,
+}
+
 /// Which taxonomy of scenario labels to use.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -64,6 +78,10 @@ pub struct EnvelopeParams {
     pub rule: ThresholdRule,
     /// Clip-level bootstrap resamples.
     pub bootstrap: usize,
+    /// Resampling scheme of the bootstrap.
+    pub bootstrap_method: BootstrapMethod,
+    /// With `Auto`, corpora with more clips than this use the Poisson bootstrap.
+    pub poisson_min_clips: usize,
     /// Seed of every random draw (bootstrap, GMM starts, CV folds).
     pub seed: u64,
     /// Largest number of mixture components tried.
@@ -113,6 +131,8 @@ impl Default for EnvelopeParams {
             headline_budget: 0.15,
             rule: ThresholdRule::FirstViolation,
             bootstrap: 10_000,
+            bootstrap_method: BootstrapMethod::Auto,
+            poisson_min_clips: 100_000,
             seed: 0,
             k_max: 8,
             restarts: 20,

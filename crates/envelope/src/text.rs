@@ -303,11 +303,13 @@ pub struct TextFeatures {
     pub action_attacked: usize,
 }
 
-/// Reusable buffers for [`TextFeatures::compute`], so rows cost no allocation.
+/// Reusable buffers for [`TextFeatures::compute`], so rows cost no allocation, and the
+/// action of the last clean text (a clip's rows share one clean text).
 #[derive(Debug, Default)]
 pub struct TextScratch {
     lower_a: String,
     lower_b: String,
+    cached_clean: Option<(String, usize)>,
 }
 
 impl TextFeatures {
@@ -318,6 +320,23 @@ impl TextFeatures {
         rules: &ActionRules,
         scratch: &mut TextScratch,
     ) -> Self {
+        let action_clean = match &scratch.cached_clean {
+            Some((text, action)) if text == clean => *action,
+            _ => {
+                let action = rules.classify(clean);
+                scratch.cached_clean = Some((clean.to_string(), action));
+                action
+            }
+        };
+        if clean == attacked {
+            // Identical texts: unchanged, the same token set (Jaccard 1), the same action.
+            return Self {
+                changed: false,
+                jaccard: 1.0,
+                action_clean,
+                action_attacked: action_clean,
+            };
+        }
         lower_into(clean, &mut scratch.lower_a);
         lower_into(attacked, &mut scratch.lower_b);
         let (a, b) = (scratch.lower_a.as_str(), scratch.lower_b.as_str());
@@ -337,7 +356,7 @@ impl TextFeatures {
         Self {
             changed: coc_changed(clean, attacked),
             jaccard,
-            action_clean: rules.classify_lower(a),
+            action_clean,
             action_attacked: rules.classify_lower(b),
         }
     }

@@ -17,8 +17,88 @@ use crate::input::PairTable;
 use crate::model::Axis;
 use crate::params::ThresholdRule;
 
-/// Stream tag of the bootstrap.
+/// Stream tag of the multinomial bootstrap.
 const BOOT: u64 = 0xB007;
+/// Stream tag of the Poisson bootstrap.
+const BOOT_POISSON: u64 = 0xB0B0;
+
+/// How a resample weights the clips of a stratum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Resampling {
+    /// n draws with replacement (the classic bootstrap).
+    Multinomial,
+    /// Independent Poisson(1) weights per clip (the Poisson bootstrap).
+    Poisson,
+}
+
+/// P(X ≤ i) for X ~ Poisson(1), scaled to 2³² and rounded, i = 0..12. X > 11 has probability
+/// below 2⁻³², so a uniform 32-bit word `u` maps to X = #{i : u ≥ T[i]} ∈ 0..=12.
+fn poisson1_thresholds() -> &'static [u32; 12] {
+    static T: std::sync::OnceLock<[u32; 12]> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
+        let mut t = [0u32; 12];
+        let mut term = (-1.0f64).exp();
+        let mut cdf = 0.0;
+        for (i, slot) in t.iter_mut().enumerate() {
+            if i > 0 {
+                term /= i as f64;
+            }
+            cdf += term;
+            *slot = (cdf * 4_294_967_296.0).round().min(f64::from(u32::MAX)) as u32;
+        }
+        t
+    })
+}
+
+/// A Poisson(1) draw by inversion of a uniform 32-bit word.
+#[inline]
+fn poisson1_slow(u: u32) -> u8 {
+    poisson1_thresholds()
+        .iter()
+        .map(|&x| u8::from(u >= x))
+        .sum()
+}
+
+/// The draw of every 32-bit word whose top 16 bits are the index, or 0xFF where the 2¹⁶
+/// words of that index straddle a threshold (then [`poisson1_slow`] decides). Exact.
+fn poisson1_lut() -> &'static [u8] {
+    static L: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    L.get_or_init(|| {
+        (0u32..1 << 16)
+            .map(|h| {
+                let lo = poisson1_slow(h << 16);
+                let hi = poisson1_slow((h << 16) | 0xFFFF);
+                if lo == hi { lo } else { 0xFF }
+            })
+            .collect()
+    })
+}
+
+/// A Poisson(1) draw by inversion of a uniform 32-bit word (table first, exact).
+#[cfg(test)]
+#[inline]
+fn poisson1(u: u32) -> f64 {
+    let c = poisson1_lut()[(u >> 16) as usize];
+    f64::from(if c == 0xFF { poisson1_slow(u) } else { c })
+}
+
+/// Fills `w` with Poisson(1) weights from `rng` (two per 64-bit word).
+#[inline]
+fn poisson1_fill(rng: &mut seed::Xoshiro256pp, raw: &mut [u32], w: &mut [f64]) {
+    for pair in raw.chunks_mut(2) {
+        let u = rng.next_u64();
+        pair[0] = u as u32;
+        if let Some(x) = pair.get_mut(1) {
+            *x = (u >> 32) as u32;
+        }
+    }
+    let lut = poisson1_lut();
+    for (wi, &u) in w.iter_mut().zip(raw.iter()) {
+        let c = lut[(u >> 16) as usize];
+        *wi = f64::from(if c == 0xFF { poisson1_slow(u) } else { c });
+    }
+}
+
 /// Resamples per work item.
 pub(crate) const CHUNK: usize = 64;
 
@@ -239,6 +319,7 @@ pub(crate) fn bootstrap(
     rule: ThresholdRule,
     n_resamples: usize,
     seed_value: u64,
+    method: Resampling,
 ) -> BootResult {
     let ns = slots.n_slots;
     let stride = slots.stride();
@@ -293,41 +374,84 @@ pub(crate) fn bootstrap(
                 })
                 .collect();
             let mut delta = vec![vec![Vec::with_capacity(hi - lo); ns]; n_groups];
-            let mut rngs: Vec<_> = (0..strata_clips.len())
-                .map(|s| seed::rng(seed_value, &[BOOT, s as u64, c as u64]))
-                .collect();
-            let mut stratum_sum = vec![0.0; strata_clips.len() * stride];
+            let r_n = hi - lo;
+            let n_strata = strata_clips.len();
             let mut gsum = vec![0.0; stride];
             let mut mc = vec![0.0; ns];
             let mut ma = vec![0.0; ns];
-            let mut acc_w = vec![0.0; width];
-            for _ in lo..hi {
-                for (s, rows) in packed.iter().enumerate() {
-                    let acc = &mut stratum_sum[s * stride..(s + 1) * stride];
-                    acc.fill(0.0);
-                    let n = strata_clips[s].len();
-                    if n == 0 {
-                        continue;
-                    }
-                    let rng = &mut rngs[s];
-                    acc_w.fill(0.0);
-                    for _ in 0..n {
-                        let k = rng.random_range(0..n);
-                        let row = &rows[k * width..(k + 1) * width];
-                        for (a, v) in acc_w.iter_mut().zip(row) {
-                            *a += v;
+            // Stratum sums of every resample of the chunk: [resample][stratum][stride].
+            let mut all = vec![0.0; r_n * n_strata * stride];
+            let unpack = |acc_w: &[f64], total: f64, acc: &mut [f64]| {
+                if slots.uniform_clean {
+                    acc[..ns].fill(acc_w[0]);
+                    acc[ns..2 * ns].copy_from_slice(&acc_w[1..]);
+                } else {
+                    acc[..width].copy_from_slice(acc_w);
+                }
+                if slots.uniform {
+                    acc[2 * ns..].fill(total);
+                }
+            };
+            for (s, rows) in packed.iter().enumerate() {
+                let n = strata_clips[s].len();
+                if n == 0 {
+                    continue;
+                }
+                match method {
+                    Resampling::Multinomial => {
+                        // n draws with replacement per resample, resample by resample.
+                        let mut rng = seed::rng(seed_value, &[BOOT, s as u64, c as u64]);
+                        let mut acc_w = vec![0.0; width];
+                        for r in 0..r_n {
+                            acc_w.fill(0.0);
+                            for _ in 0..n {
+                                let k = rng.random_range(0..n);
+                                let row = &rows[k * width..(k + 1) * width];
+                                for (a, v) in acc_w.iter_mut().zip(row) {
+                                    *a += v;
+                                }
+                            }
+                            let at = (r * n_strata + s) * stride;
+                            unpack(&acc_w, n as f64, &mut all[at..at + stride]);
                         }
                     }
-                    if slots.uniform_clean {
-                        acc[..ns].fill(acc_w[0]);
-                        acc[ns..2 * ns].copy_from_slice(&acc_w[1..]);
-                    } else {
-                        acc[..width].copy_from_slice(&acc_w);
-                    }
-                    if slots.uniform {
-                        acc[2 * ns..].fill(n as f64);
+                    Resampling::Poisson => {
+                        // Every clip gets an independent Poisson(1) weight in every resample;
+                        // clips stream in order, all resamples of the chunk at once.
+                        let mut rng = seed::Xoshiro256pp::new(
+                            seed_value,
+                            &[BOOT_POISSON, s as u64, c as u64],
+                        );
+                        let mut acc_t = vec![0.0; width * r_n];
+                        let mut total = vec![0.0; r_n];
+                        let mut w = vec![0.0; r_n];
+                        let mut raw = vec![0u32; r_n];
+                        for k in 0..n {
+                            poisson1_fill(&mut rng, &mut raw, &mut w);
+                            let w = &w[..];
+                            let row = &rows[k * width..(k + 1) * width];
+                            for (j, &v) in row.iter().enumerate() {
+                                for (a, &wr) in acc_t[j * r_n..(j + 1) * r_n].iter_mut().zip(w) {
+                                    *a += wr * v;
+                                }
+                            }
+                            for (t, &wr) in total.iter_mut().zip(w) {
+                                *t += wr;
+                            }
+                        }
+                        let mut acc_w = vec![0.0; width];
+                        for r in 0..r_n {
+                            for (j, a) in acc_w.iter_mut().enumerate() {
+                                *a = acc_t[j * r_n + r];
+                            }
+                            let at = (r * n_strata + s) * stride;
+                            unpack(&acc_w, total[r], &mut all[at..at + stride]);
+                        }
                     }
                 }
+            }
+            for r in 0..r_n {
+                let stratum_sum = &all[r * n_strata * stride..(r + 1) * n_strata * stride];
                 for g in 0..n_groups {
                     gsum.fill(0.0);
                     for &s in &groups.strata[g] {
@@ -507,6 +631,51 @@ mod tests {
                 censored: true
             }
         );
+    }
+
+    #[test]
+    fn poisson_weights_follow_the_law() {
+        let t = poisson1_thresholds();
+        assert_eq!(t[0], (4_294_967_296.0 * (-1.0f64).exp()).round() as u32);
+        assert!(t.windows(2).all(|p| p[0] < p[1]));
+        assert_eq!(poisson1(0), 0.0);
+        assert!(poisson1(u32::MAX) >= 11.0);
+        // The table agrees with the threshold compares everywhere near every threshold.
+        for &x in t.iter() {
+            for u in [
+                x.saturating_sub(70_000),
+                x.saturating_sub(1),
+                x,
+                x.saturating_add(1),
+                x.saturating_add(70_000),
+            ] {
+                assert_eq!(poisson1(u), f64::from(poisson1_slow(u)), "{u}");
+            }
+        }
+        // One straddling bucket per distinct threshold bucket (the top thresholds share one).
+        let mut buckets: Vec<u32> = t
+            .iter()
+            .filter(|&&x| x & 0xFFFF != 0)
+            .map(|&x| x >> 16)
+            .collect();
+        buckets.dedup();
+        assert_eq!(
+            poisson1_lut().iter().filter(|&&c| c == 0xFF).count(),
+            buckets.len()
+        );
+        // Empirical mean and variance of 2^20 draws are 1 within sampling error.
+        let mut g = fogline_stats::seed::Xoshiro256pp::new(1, &[2]);
+        let n = 1 << 20;
+        let (mut s1, mut s2) = (0.0, 0.0);
+        for _ in 0..n {
+            let w = poisson1(g.next_u64() as u32);
+            s1 += w;
+            s2 += w * w;
+        }
+        let mean = s1 / n as f64;
+        let var = s2 / n as f64 - mean * mean;
+        assert!((mean - 1.0).abs() < 5.0 / (n as f64).sqrt(), "{mean}");
+        assert!((var - 1.0).abs() < 10.0 / (n as f64).sqrt(), "{var}");
     }
 
     #[test]

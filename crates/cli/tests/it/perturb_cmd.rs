@@ -37,7 +37,13 @@ fn write_png(path: &Path, w: u32, h: u32, data: &[u8], color: image::ExtendedCol
 }
 
 fn write_rgb(path: &Path, w: u32, h: u32, salt: u32) {
-    write_png(path, w, h, &pixels(w, h, salt), image::ExtendedColorType::Rgb8);
+    write_png(
+        path,
+        w,
+        h,
+        &pixels(w, h, salt),
+        image::ExtendedColorType::Rgb8,
+    );
 }
 
 /// Two clips of three 40×24 frames each.
@@ -94,7 +100,10 @@ fn perturb_keeps_the_tree_writes_a_manifest_and_prints_its_path() {
     let o = run_perturb(&input, &out, &["--condition", "noise_30", "--seed", "7"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let stdout = String::from_utf8(o.stdout).unwrap();
-    assert!(stdout.contains("6 frames perturbed with noise_30 (seed 7)"), "{stdout}");
+    assert!(
+        stdout.contains("6 frames perturbed with noise_30 (seed 7)"),
+        "{stdout}"
+    );
     assert!(stdout.contains("perturb.json"), "{stdout}");
     for clip in ["clip_a", "clip_b"] {
         for i in 0..3 {
@@ -195,11 +204,19 @@ fn masks_follow_the_boxes_and_the_manifest_exposes_the_regions() {
         ],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let img = image::open(out.join("clip_a/0001.png")).unwrap().into_rgb8();
+    let img = image::open(out.join("clip_a/0001.png"))
+        .unwrap()
+        .into_rgb8();
     assert_eq!(img.get_pixel(8, 2).0, [0, 255, 0]);
     assert_eq!(img.get_pixel(12, 8).0, [0, 0, 0]);
-    let src = image::open(input.join("clip_a/0001.png")).unwrap().into_rgb8();
-    assert_eq!(img.get_pixel(30, 10), src.get_pixel(30, 10), "the car is not masked");
+    let src = image::open(input.join("clip_a/0001.png"))
+        .unwrap()
+        .into_rgb8();
+    assert_eq!(
+        img.get_pixel(30, 10),
+        src.get_pixel(30, 10),
+        "the car is not masked"
+    );
     let m: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("perturb.json")).unwrap()).unwrap();
     let d = &m["frames"][1]["deficits"][0];
@@ -232,16 +249,31 @@ fn depth_maps_switch_fog_to_koschmieder() {
     let input = dir.path().join("in");
     write_rgb(&input.join("c/0.png"), 8, 4, 0);
     let depth = dir.path().join("depth");
-    // 1 m in the left half, 1 km in the right half.
-    let d: Vec<u16> = (0..32).map(|i| if i % 8 < 4 { 1000 } else { 60000 }).collect();
+    // In 10 cm units: 1 m in the left half, 6 km in the right half.
+    let d: Vec<u16> = (0..32)
+        .map(|i| if i % 8 < 4 { 10 } else { 60000 })
+        .collect();
     std::fs::create_dir_all(depth.join("c")).unwrap();
-    let bytes: Vec<u8> = d.iter().flat_map(|v| v.to_be_bytes()).collect();
-    write_png(&depth.join("c/0.png"), 8, 4, &bytes, image::ExtendedColorType::L16);
+    let bytes: Vec<u8> = d.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    write_png(
+        &depth.join("c/0.png"),
+        8,
+        4,
+        &bytes,
+        image::ExtendedColorType::L16,
+    );
     let out = dir.path().join("out");
     let o = run_perturb(
         &input,
         &out,
-        &["--condition", "fog_07", "--depth", depth.to_str().unwrap()],
+        &[
+            "--condition",
+            "fog_07",
+            "--depth",
+            depth.to_str().unwrap(),
+            "--depth-scale",
+            "0.1",
+        ],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let img = image::open(out.join("c/0.png")).unwrap().into_rgb8();
@@ -276,7 +308,8 @@ fn assert_fails(o: &Output, out: &Path, needles: &[&str]) {
 #[test]
 fn broken_images_are_errors_that_name_the_file() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: Vec<(&str, Box<dyn Fn(&Path)>, Vec<&str>)> = vec![
+    type Make = Box<dyn Fn(&Path)>;
+    let cases: Vec<(&str, Make, Vec<&str>)> = vec![
         (
             "truncated png",
             Box::new(|p: &Path| {
@@ -289,8 +322,11 @@ fn broken_images_are_errors_that_name_the_file() {
         (
             "corrupt jpeg",
             Box::new(|p: &Path| {
-                std::fs::write(p.with_extension("jpg"), b"\xFF\xD8\xFF\xE0 not really a jpeg")
-                    .unwrap();
+                std::fs::write(
+                    p.with_extension("jpg"),
+                    b"\xFF\xD8\xFF\xE0 not really a jpeg",
+                )
+                .unwrap();
             }),
             vec!["cannot decode", "bad.jpg"],
         ),
@@ -333,7 +369,11 @@ fn zero_width_png() -> Vec<u8> {
         for &b in bytes {
             c ^= u32::from(b);
             for _ in 0..8 {
-                c = if c & 1 == 1 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+                c = if c & 1 == 1 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
             }
         }
         !c
@@ -362,7 +402,11 @@ fn bad_boxes_conditions_and_depth_maps_are_clear_errors() {
     let out = dir.path().join("out");
 
     let o = run_perturb(&input, &out, &["--condition", "blur_3"]);
-    assert_fails(&o, &out, &["unknown condition \"blur_3\"", "expected one of"]);
+    assert_fails(
+        &o,
+        &out,
+        &["unknown condition \"blur_3\"", "expected one of"],
+    );
 
     let o = run_perturb(&input, &out, &["--condition", "mask_all"]);
     assert_fails(&o, &out, &["--boxes"]);
@@ -371,7 +415,11 @@ fn bad_boxes_conditions_and_depth_maps_are_clear_errors() {
     for (line, needles) in [
         (
             "{\"frame\": \"clip_a/0001.png\", \"class\": \"car\", \"x\": 35, \"y\": 2, \"width\": 10, \"height\": 5}",
-            vec!["boxes.jsonl:2", "clip_a/0001.png", "reaches outside the 40×24 frame"],
+            vec![
+                "boxes.jsonl:2",
+                "clip_a/0001.png",
+                "reaches outside the 40×24 frame",
+            ],
         ),
         (
             "{\"frame\": \"clip_a/0001.png\", \"class\": \"car\", \"x\": 3, \"y\": 2, \"width\": -4, \"height\": 5}",
@@ -392,7 +440,12 @@ fn bad_boxes_conditions_and_depth_maps_are_clear_errors() {
         let o = run_perturb(
             &input,
             &out,
-            &["--condition", "mask_all", "--boxes", boxes.to_str().unwrap()],
+            &[
+                "--condition",
+                "mask_all",
+                "--boxes",
+                boxes.to_str().unwrap(),
+            ],
         );
         assert_fails(&o, &out, &needles);
     }
@@ -468,7 +521,14 @@ fn bench_perturb_reports_every_family_next_to_the_copy_floor() {
         .iter()
         .map(|f| f["condition"].as_str().unwrap())
         .collect();
-    for n in ["noise_10", "noise_70", "dark", "fog_07", "fog_07@depth", "mask_all@boxes"] {
+    for n in [
+        "noise_10",
+        "noise_70",
+        "dark",
+        "fog_07",
+        "fog_07@depth",
+        "mask_all@boxes",
+    ] {
         assert!(names.contains(&n), "{n}");
     }
     assert!(v["peers"].is_null());
@@ -486,7 +546,15 @@ fn bench_perturb_reports_every_family_next_to_the_copy_floor() {
 fn help_lists_the_commands_with_examples() {
     let o = fogline(&["perturb", "--help"]);
     let s = String::from_utf8(o.stdout).unwrap();
-    for k in ["--input", "--output", "--condition", "--seed", "--boxes", "--depth", "Examples:"] {
+    for k in [
+        "--input",
+        "--output",
+        "--condition",
+        "--seed",
+        "--boxes",
+        "--depth",
+        "Examples:",
+    ] {
         assert!(s.contains(k), "{k}");
     }
     let o = fogline(&["bench", "perturb", "--help"]);

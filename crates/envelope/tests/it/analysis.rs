@@ -308,3 +308,65 @@ fn invalid_parameters_are_refused() {
         assert!(e.starts_with("parameter "), "{e}");
     }
 }
+
+#[test]
+fn poisson_bootstrap_is_deterministic_and_agrees_with_the_multinomial() {
+    use fogline_envelope::BootstrapMethod;
+    let t = synthetic::corpus(&synthetic::SyntheticParams {
+        n_clips: 1500,
+        seed: 8,
+    });
+    let base = EnvelopeParams {
+        bootstrap: 2000,
+        restarts: 1,
+        k_max: 3,
+        cv_folds: 0,
+        ..EnvelopeParams::default()
+    };
+    let poisson = EnvelopeParams {
+        bootstrap_method: BootstrapMethod::Poisson,
+        ..base.clone()
+    };
+    assert_eq!(
+        run_with_threads(1, &t, &poisson),
+        run_with_threads(2, &t, &poisson)
+    );
+    let a = analyze(&t, &poisson).unwrap();
+    let m = analyze(
+        &t,
+        &EnvelopeParams {
+            bootstrap_method: BootstrapMethod::Multinomial,
+            ..base
+        },
+    )
+    .unwrap();
+    assert_eq!(a.bootstrap_method, "poisson");
+    assert_eq!(m.bootstrap_method, "multinomial");
+    for (x, y) in a.thresholds.iter().zip(&m.thresholds) {
+        assert_eq!(
+            x.sigma_star, y.sigma_star,
+            "point estimates do not depend on the bootstrap"
+        );
+        for (k, share) in &x.bootstrap_share {
+            let other = y.bootstrap_share.get(k).copied().unwrap_or(0.0);
+            // Two bootstraps of 2,000 resamples: shares agree within Monte Carlo error.
+            assert!(
+                (share - other).abs() < 0.06,
+                "{} {} {k}: {share} vs {other}",
+                x.scenario,
+                x.axis
+            );
+        }
+    }
+    for (x, y) in a.dose_response.iter().zip(&m.dose_response) {
+        let [lo_a, hi_a] = x.delta_ade_ci95_m.unwrap();
+        let [lo_m, hi_m] = y.delta_ade_ci95_m.unwrap();
+        let width = (hi_m - lo_m).max(1e-9);
+        assert!(
+            (lo_a - lo_m).abs() < 0.25 * width && (hi_a - hi_m).abs() < 0.25 * width,
+            "{} {}",
+            x.scenario,
+            x.level
+        );
+    }
+}
