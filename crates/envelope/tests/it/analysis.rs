@@ -192,9 +192,9 @@ fn fewer_changed_pairs_than_k_and_fixed_bands() {
     let env = analyze(&t, &quick_params()).unwrap();
     no_nan_anywhere(&env);
     // Only three changed pairs: k is capped by the sample, never errors.
-    if env.severity.defined {
-        assert!(env.severity.chosen_k.unwrap() <= 3);
-    }
+    assert!(env.severity.defined, "{:?}", env.severity.reason);
+    assert!(env.severity.chosen_k.unwrap() <= 3);
+    assert!(env.severity.bic.iter().all(|r| r.k <= 3));
     let env = analyze(
         &t,
         &EnvelopeParams {
@@ -369,4 +369,45 @@ fn poisson_bootstrap_is_deterministic_and_agrees_with_the_multinomial() {
             x.level
         );
     }
+}
+
+#[test]
+fn a_scenario_without_changed_pairs_gets_undefined_entries_not_nan() {
+    let mut s =
+        String::from("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\n");
+    for k in 0..40 {
+        for (i, c) in ["noise_10", "noise_30", "noise_50"].iter().enumerate() {
+            // PASSING flips under every condition with spread-out L2; LANE_KEEPING never flips.
+            let l2 = 2.0 + (k * 3 + i) as f64 * 0.7 + if k % 4 == 0 { 40.0 } else { 0.0 };
+            s.push_str(&format!(
+                "p{k},PASSING,{c},1.5,1.6,{l2},Pass the truck.,Stop now.\n"
+            ));
+            s.push_str(&format!(
+                "l{k},LANE_KEEPING,{c},1.0,1.05,0.5,Keep lane.,Keep lane.\n"
+            ));
+        }
+    }
+    let env = analyze(&csv(&s).unwrap(), &quick_params()).unwrap();
+    no_nan_anywhere(&env);
+    assert!(env.severity.defined);
+    let lk = env
+        .odd
+        .iter()
+        .find(|o| o.scenario == "LANE_KEEPING")
+        .unwrap();
+    assert_eq!(lk.n_changed, 0);
+    assert_eq!(lk.p_high, None);
+    assert_eq!(lk.severity_group, "undefined");
+    let mix = env
+        .severity
+        .per_scenario
+        .iter()
+        .find(|m| m.scenario == "LANE_KEEPING")
+        .unwrap();
+    assert!(mix.chosen_k.is_none() && mix.reason.is_some());
+    // The empty joint row is dropped from the chi-square test, which needs two non-empty rows.
+    assert!(env.statistics.chi2.is_none());
+    assert!(env.statistics.undefined.contains_key("chi2"));
+    let md = fogline_envelope::markdown::render(&env);
+    assert!(md.contains("| LANE_KEEPING | 0 | 0 | — |"), "{md}");
 }
