@@ -13,7 +13,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use fogline_envelope::{
-    Bands, Envelope, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule,
+    Bands, BootstrapMethod, Envelope, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule,
 };
 
 #[derive(Parser)]
@@ -63,6 +63,13 @@ enum RuleArg {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+enum BootMethodArg {
+    Auto,
+    Multinomial,
+    Poisson,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 enum TaxonomyArg {
     /// The paper's seven classes + OTHER when the data uses them, else the data's labels.
     Auto,
@@ -86,6 +93,10 @@ struct AnalysisArgs {
     /// Clip-level bootstrap resamples (0 = off).
     #[arg(long, default_value_t = 10_000)]
     bootstrap: usize,
+    /// Bootstrap resampling: `multinomial` (classic), `poisson` (clip weights), or `auto`
+    /// (multinomial up to 100,000 clips).
+    #[arg(long, value_enum, default_value = "auto")]
+    bootstrap_method: BootMethodArg,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -220,6 +231,11 @@ fn params(a: &AnalysisArgs) -> Result<EnvelopeParams> {
             RuleArg::MaxPassing => ThresholdRule::MaxPassing,
         },
         bootstrap: a.bootstrap,
+        bootstrap_method: match a.bootstrap_method {
+            BootMethodArg::Auto => BootstrapMethod::Auto,
+            BootMethodArg::Multinomial => BootstrapMethod::Multinomial,
+            BootMethodArg::Poisson => BootstrapMethod::Poisson,
+        },
         seed: a.seed,
         k_max: a.k_max,
         restarts: a.restarts,

@@ -881,6 +881,14 @@ fn bench_perturb(a: BenchPerturbArgs) -> Result<ExitCode> {
         a.height,
         a.runs
     );
+    // Let the clock and the caches settle before the first measurement (the first family
+    // timed would otherwise pay for it): ~0.3 s of the kind of work measured.
+    let settle = Instant::now();
+    let warm = Perturbation::parse("noise_30")?.prepare(0)?;
+    while settle.elapsed() < Duration::from_millis(300) {
+        warm.apply_into(&FrameInput::new(&b.frame, FrameKey::default()), &mut b.out)?;
+        b.flush();
+    }
     let copy = b.copy()?;
     let copy_ms = copy.median_ms;
     let mut rows: Vec<BenchRow> = Vec::new();
@@ -925,9 +933,11 @@ fn bench_perturb(a: BenchPerturbArgs) -> Result<ExitCode> {
                 Some(acc.map_or(v, |a| a.max(v)))
             })
     };
-    let noise_ms = max_of(&["noise_10", "noise_30", "noise_50", "noise_70"]);
+    // The millisecond goals are for 1080p frames.
+    let full_hd = (a.width, a.height) == (1920, 1080);
+    let noise_ms = max_of(&["noise_10", "noise_30", "noise_50", "noise_70"]).filter(|_| full_hd);
     let lut_ms = max_of(&["dark", "bright", "fog_03", "fog_07"]);
-    let depth_ms = get("fog_07@depth");
+    let depth_ms = get("fog_07@depth").filter(|_| full_hd);
     let ratio_min = |peer: &str| -> Option<f64> {
         peers.as_ref().and_then(|p| {
             p.results

@@ -34,7 +34,7 @@
 //!
 //! Stream layout: row `r` of a frame draws from `main = WyRand(row_seed)` with
 //! `row_seed = child(step_seed, [r])`, and from `aux = WyRand(child(row_seed, [1]))`. The row
-//! is cut into blocks of 1024 samples (the last one shorter); for a block of `n` samples `main`
+//! is cut into blocks of 256 samples (the last one shorter); for a block of `n` samples `main`
 //! yields `⌈n/64⌉` sign words (bit `i % 64` of word `i / 64` set means `S = −1` for sample `i`
 //! of the block), then `⌈n/4⌉` index words (sample `i` takes the 16-bit field at bits
 //! `16·(i % 4)` of word `i / 4` as the top 16 bits of `U`); a straddling sample takes the
@@ -58,7 +58,7 @@ const GUIDE_LEN: usize = 1 << GUIDE_BITS;
 /// Guide entry meaning "straddles a threshold: resolve with more bits".
 const RESOLVE: u8 = 255;
 /// Samples of a row processed together (a multiple of 64).
-const BLOCK: usize = 1024;
+const BLOCK: usize = 256;
 
 /// The sampling tables of Gaussian noise with one σ (built once, used for every frame).
 #[derive(Debug, Clone)]
@@ -169,7 +169,8 @@ impl GaussianTable {
         }
     }
 
-    /// One block of at most [`BLOCK`] samples of a row (the buffers stay in L1 with the guide).
+    /// One block of at most [`BLOCK`] samples of a row (small blocks keep the buffers in L1 and
+    /// let the out-of-order core overlap one block's lookups with the previous block's output).
     fn apply_block(
         &self,
         src: &[u8],
@@ -205,6 +206,9 @@ impl GaussianTable {
             m4[3] = guide[(r >> 48) as usize];
         }
         let full = n / 16 * 16;
+        // Bit c: chunk c of 16 samples has a straddling draw. Collected without branches and
+        // walked afterwards, so a rare slow draw costs one mispredicted branch, not three.
+        let mut flagged = 0u64;
         for (c, (((o, x), m), neg)) in dst[..full]
             .chunks_exact_mut(16)
             .zip(src[..full].chunks_exact(16))
@@ -216,12 +220,18 @@ impl GaussianTable {
             let x: [u8; 16] = x.try_into().expect("16");
             let m: [u8; 16] = m.try_into().expect("16");
             let neg: [u8; 16] = neg.try_into().expect("16");
-            if combine16(o, x, m, neg) {
-                let base = c * 16;
-                for j in 0..16 {
-                    if m[j] == RESOLVE {
-                        o[j] = self.resolve(sc.field(base + j), x[j], neg[j] != 0, aux);
-                    }
+            flagged |= u64::from(combine16(o, x, m, neg)) << c;
+        }
+        while flagged != 0 {
+            let c = flagged.trailing_zeros() as usize;
+            flagged &= flagged - 1;
+            for half in [c * 16, c * 16 + 8] {
+                let w = u64::from_le_bytes(sc.mags[half..half + 8].try_into().expect("8"));
+                let mut lanes = bytes_equal_to_ff(w);
+                while lanes != 0 {
+                    let i = half + (lanes.trailing_zeros() / 8) as usize;
+                    lanes &= lanes - 1;
+                    dst[i] = self.resolve(sc.field(i), src[i], sc.negs[i] != 0, aux);
                 }
             }
         }
@@ -296,6 +306,15 @@ fn combine16(o: &mut [u8; 16], x: [u8; 16], m: [u8; 16], neg: [u8; 16]) -> bool 
         o[j] = (down & neg[j]) | (up & !neg[j]);
     }
     any
+}
+
+/// Bit 7 of each byte of the result is set exactly where `w` has a byte `0xFF` (exact, no
+/// false positives).
+#[inline]
+fn bytes_equal_to_ff(w: u64) -> u64 {
+    const LOW7: u64 = 0x7F7F_7F7F_7F7F_7F7F;
+    let t = !w; // bytes that were 0xFF are now 0
+    !(((t & LOW7) + LOW7) | t | LOW7)
 }
 
 /// Byte masks of the 256 bit patterns of a byte.

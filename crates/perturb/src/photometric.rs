@@ -102,26 +102,35 @@ pub(crate) fn koschmieder(src: &Frame, dst: &mut Frame, depth: &DepthMap, beta: 
     let a = a as f32;
     let width = src.width() as usize;
     let stride = src.stride();
-    let w4 = width.div_ceil(4) * 4;
-    let mut t = vec![0f32; w4];
-    let mut t3 = vec![0f32; w4 * 3];
+    // Segments of SEG pixels keep the transmission buffers in L1 and let the out-of-order
+    // core overlap the exp of one segment with the blend of the previous.
+    const SEG: usize = 128;
+    let mut t = [0f32; SEG];
+    let mut t3 = [0f32; SEG * 3];
     for ((o, i), d) in dst
         .data_mut()
         .chunks_exact_mut(stride)
         .zip(src.data().chunks_exact(stride))
         .zip(depth.depth_m().chunks_exact(width))
     {
-        for (tt, &dd) in t.iter_mut().zip(d) {
-            *tt = exp_neg(-beta * dd);
-        }
-        // One transmission per sample: three copies per pixel.
-        for (t12, t4) in t3.chunks_exact_mut(12).zip(t.chunks_exact(4)) {
-            t12.copy_from_slice(&[
-                t4[0], t4[0], t4[0], t4[1], t4[1], t4[1], t4[2], t4[2], t4[2], t4[3], t4[3], t4[3],
-            ]);
-        }
-        for ((o, &j), &tt) in o.iter_mut().zip(i).zip(&t3) {
-            *o = blend(j, tt, a);
+        for ((o, i), d) in o
+            .chunks_mut(SEG * 3)
+            .zip(i.chunks(SEG * 3))
+            .zip(d.chunks(SEG))
+        {
+            for (tt, &dd) in t.iter_mut().zip(d) {
+                *tt = exp_neg(-beta * dd);
+            }
+            // One transmission per sample: three copies per pixel.
+            for (t12, t4) in t3.chunks_exact_mut(12).zip(t.chunks_exact(4)) {
+                t12.copy_from_slice(&[
+                    t4[0], t4[0], t4[0], t4[1], t4[1], t4[1], t4[2], t4[2], t4[2], t4[3], t4[3],
+                    t4[3],
+                ]);
+            }
+            for ((o, &j), &tt) in o.iter_mut().zip(i).zip(&t3) {
+                *o = blend(j, tt, a);
+            }
         }
     }
 }

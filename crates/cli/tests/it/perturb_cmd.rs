@@ -532,14 +532,16 @@ fn bench_perturb_reports_every_family_next_to_the_copy_floor() {
         assert!(names.contains(&n), "{n}");
     }
     assert!(v["peers"].is_null());
-    // The text form names the goals; no timing is asserted.
+    // The text form; no timing is asserted.
     let o = fogline(&[
         "bench", "perturb", "--width", "32", "--height", "16", "--runs", "1", "--filter", "noise",
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let s = String::from_utf8(o.stdout).unwrap();
     assert!(s.contains("copy floor"), "{s}");
-    assert!(s.contains("gaussian noise <= 3 ms/frame"), "{s}");
+    assert!(s.contains("noise_70"), "{s}");
+    // The millisecond goals are for 1080p frames only.
+    assert!(!s.contains("3 ms/frame"), "{s}");
 }
 
 #[test]
