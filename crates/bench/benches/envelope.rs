@@ -355,6 +355,7 @@ fn large(dir: &Path) {
     let an = secs(t);
     let peak = peak_rss_mb();
     let chosen_k = env.severity.chosen_k;
+    let bootstrap_method = env.bootstrap_method;
     drop(env);
     let _ = std::fs::remove_file(&csv);
     let mb = |v: Option<f64>| v.map_or("n/a".to_string(), |m| format!("{m:.0} MB"));
@@ -383,6 +384,7 @@ fn large(dir: &Path) {
         "chosen k",
         chosen_k.map_or("-".to_string(), |k| k.to_string())
     );
+    println!("  {:<44} {:>11}", "bootstrap method", bootstrap_method);
     println!(
         "goals     ≤ 60 s: {}   ≤ 4 GB: {}",
         goal(read + an <= 60.0),
