@@ -80,7 +80,6 @@ pub mod error;
 pub mod frame;
 pub mod jpeg;
 pub mod noise;
-mod normal;
 pub mod occlusion;
 pub mod params;
 pub mod perturbation;

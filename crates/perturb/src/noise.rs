@@ -48,8 +48,8 @@
 //! (`Perturbation::prepare`).
 
 use crate::frame::Frame;
-use crate::normal::norm_sf;
 use crate::rng::{WyRand, child, probability_threshold};
+use fogline_stats::special::norm_sf;
 
 /// Bits of `U` that index the guide table.
 const GUIDE_BITS: u32 = 16;

@@ -1,8 +1,7 @@
 //! Seeds and the generator behind every random draw.
 //!
 //! - [`child`] derives a child seed from a parent seed and a path of integers with the
-//!   SplitMix64 finaliser; it is the same function as `fogline_stats::seed::child` (a test
-//!   checks that), copied here because level-1 crates depend only on `fogline-types`.
+//!   SplitMix64 finaliser: `fogline_stats::seed::child`, the one seed derivation of fogline.
 //! - [`name_id`] turns a name (a clip id, a condition name) into a path element: 64-bit
 //!   FNV-1a of its UTF-8 bytes, stable across platforms and releases.
 //! - [`WyRand`] is the generator: Wang Yi's *wyrand* (a 64-bit counter with the `wymum`
@@ -14,21 +13,7 @@
 //! A stream therefore depends only on *what* is computed — (seed, clip, camera, frame,
 //! condition, step, row) — never on the thread that computes it or the order of the work.
 
-/// SplitMix64 finaliser: a bijective 64-bit mixer.
-#[inline]
-pub fn mix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// The child seed of `seed` at `path` (identical to `fogline_stats::seed::child`).
-pub fn child(seed: u64, path: &[u64]) -> u64 {
-    path.iter().fold(mix64(seed), |acc, &p| {
-        mix64(acc ^ mix64(p.wrapping_add(0x5851_F42D_4C95_7F2D)))
-    })
-}
+pub use fogline_stats::seed::{child, mix64};
 
 /// 64-bit FNV-1a hash of `name`: how names (clip ids, condition names) enter seed paths.
 pub fn name_id(name: &str) -> u64 {
@@ -121,17 +106,6 @@ mod tests {
         0x61fb_5131_8f47_d2a4,
         0x78bd_03c4_9190_9760,
     ];
-
-    #[test]
-    fn child_is_fogline_stats_child() {
-        for (seed, path) in [
-            (0u64, vec![]),
-            (42, vec![3u64, 4]),
-            (7, vec![1, 2, 3, 4, 5]),
-        ] {
-            assert_eq!(child(seed, &path), fogline_stats::seed::child(seed, &path));
-        }
-    }
 
     #[test]
     fn below_is_in_range_and_hits_every_value() {

@@ -7,7 +7,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
     BTreeMap::from([
         ("fogline-types", &[][..]),
         ("fogline-stats", &["fogline-types"][..]),
-        ("fogline-perturb", &["fogline-types"][..]),
+        ("fogline-perturb", &["fogline-types", "fogline-stats"][..]),
         ("fogline-world", &["fogline-types"][..]),
         ("fogline-planner", &["fogline-types"][..]),
         ("fogline-rco", &["fogline-types"][..]),
