@@ -324,8 +324,11 @@ impl Col {
         }
     }
 
+    /// The column kind of a header: case-insensitive, surrounding whitespace and a leading
+    /// byte-order mark ignored.
     fn from_header(h: &str) -> Option<Col> {
-        Some(match h.trim() {
+        let h = h.trim_start_matches('\u{feff}').trim().to_ascii_lowercase();
+        Some(match h.as_str() {
             "clip_id" => Col::ClipId,
             "scenario" => Col::Scenario,
             "attack" | "condition" => Col::Condition,
@@ -368,7 +371,9 @@ fn map_header<'h>(
     headers: impl Iterator<Item = &'h str>,
 ) -> Result<[Option<usize>; N_COLS]> {
     let mut map = [None; N_COLS];
-    let found: Vec<String> = headers.map(|h| h.trim().to_string()).collect();
+    let found: Vec<String> = headers
+        .map(|h| h.trim_start_matches('\u{feff}').trim().to_string())
+        .collect();
     for (i, h) in found.iter().enumerate() {
         if let Some(c) = Col::from_header(h)
             && map[c as usize].is_none()
@@ -1025,7 +1030,13 @@ fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(
         detail,
     };
     let builder =
-        ParquetRecordBatchReaderBuilder::try_new(src).map_err(|e| not_parquet(e.to_string()))?;
+        // Ignore the embedded Arrow schema so dictionary-encoded (e.g. pandas categorical)
+        // text columns decode as plain strings.
+        ParquetRecordBatchReaderBuilder::try_new_with_options(
+            src,
+            parquet::arrow::arrow_reader::ArrowReaderOptions::new().with_skip_arrow_metadata(true),
+        )
+        .map_err(|e| not_parquet(e.to_string()))?;
     let schema = builder.schema().clone();
     let map = map_header(&b.path, schema.fields().iter().map(|f| f.name().as_str()))?;
     let reader = builder

@@ -113,6 +113,45 @@ fn parquet_round_trip() {
 }
 
 #[test]
+fn bom_and_header_case_are_tolerated() {
+    let t = csv("\u{feff}Clip_ID,Scenario,Attack,ADE_clean,ade_attacked,L2,coc_clean,coc_attacked\nc,PASSING,noise_10,1,1,1,a,a\n").unwrap();
+    assert_eq!(t.clip_ids, vec!["c"]);
+}
+
+#[test]
+fn parquet_dictionary_columns_read_as_text() {
+    use arrow_array::{
+        ArrayRef, DictionaryArray, Float64Array, RecordBatch, StringArray, types::Int32Type,
+    };
+    use std::sync::Arc;
+    let scen: DictionaryArray<Int32Type> = vec!["PASSING", "PASSING"].into_iter().collect();
+    let cols: Vec<(&str, ArrayRef)> = vec![
+        ("clip_id", Arc::new(StringArray::from(vec!["a", "a"]))),
+        ("scenario", Arc::new(scen)),
+        (
+            "attack",
+            Arc::new(StringArray::from(vec!["noise_10", "noise_30"])),
+        ),
+        ("ade_clean", Arc::new(Float64Array::from(vec![1.0, 1.0]))),
+        ("ade_attacked", Arc::new(Float64Array::from(vec![1.1, 1.5]))),
+        ("l2", Arc::new(Float64Array::from(vec![0.5, 3.0]))),
+        ("coc_clean", Arc::new(StringArray::from(vec!["Go."; 2]))),
+        (
+            "coc_attacked",
+            Arc::new(StringArray::from(vec!["Go.", "Stop."])),
+        ),
+    ];
+    let batch = RecordBatch::try_from_iter(cols).unwrap();
+    let mut buf = Vec::new();
+    let mut w = parquet::arrow::ArrowWriter::try_new(&mut buf, batch.schema(), None).unwrap();
+    w.write(&batch).unwrap();
+    w.close().unwrap();
+    let t = read_pairs_bytes("t.parquet", Format::Parquet, &buf, &ReadOptions::default()).unwrap();
+    assert_eq!(t.scenarios, vec!["PASSING"]);
+    assert_eq!(t.changed, vec![false, true]);
+}
+
+#[test]
 fn missing_and_misspelt_columns() {
     let e = msg(csv("clip_id,scenario,attack,ade_clen,ade_attacked,l2,coc_clean,coc_attacked\nc,S,noise_10,1,1,1,a,b\n").unwrap_err());
     assert!(
