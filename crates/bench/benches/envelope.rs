@@ -190,14 +190,7 @@ fn paper_sized(dir: &Path) {
         .filter(|&r| table.changed[r])
         .map(|r| table.l2_m[r])
         .collect();
-    let sel = gmm::SelectParams {
-        k_max: p.k_max,
-        restarts: p.restarts,
-        n_init: p.n_init,
-        cv_folds: p.cv_folds,
-        seed: p.seed,
-        ..gmm::SelectParams::default()
-    };
+    let sel = p.gmm_select_params();
     let sel_no_cv = gmm::SelectParams {
         cv_folds: 0,
         ..sel.clone()
@@ -408,14 +401,7 @@ fn large(dir: &Path) {
         .filter(|&r| table.changed[r])
         .map(|r| table.l2_m[r])
         .collect();
-    let sel = gmm::SelectParams {
-        k_max: p.k_max,
-        restarts: p.restarts,
-        n_init: p.n_init,
-        cv_folds: p.cv_folds,
-        seed: p.seed,
-        ..gmm::SelectParams::default()
-    };
+    let sel = p.gmm_select_params();
     let t = Instant::now();
     std::hint::black_box(
         gmm::select_k(

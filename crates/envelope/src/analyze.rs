@@ -349,14 +349,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
     // ---- severity -------------------------------------------------------------------------
     let changed_rows: Vec<usize> = (0..t.len()).filter(|&r| t.changed[r]).collect();
     let l2_changed: Vec<f64> = changed_rows.iter().map(|&r| t.l2_m[r]).collect();
-    let sel_params = gmm::SelectParams {
-        k_max: p.k_max,
-        restarts: p.restarts,
-        n_init: p.n_init,
-        cv_folds: p.cv_folds,
-        seed: p.seed,
-        ..gmm::SelectParams::default()
-    };
+    let sel_params = p.gmm_select_params();
     let clock = std::time::Instant::now();
     let selection = if l2_changed.len() < 2 {
         Err(format!(

@@ -158,6 +158,19 @@ impl Default for EnvelopeParams {
 }
 
 impl EnvelopeParams {
+    /// The GMM model-selection parameters of the severity analysis (the BIC study over
+    /// `restarts` seeds and k ≤ `k_max`, `n_init` starts per fit, `cv_folds`-fold CV).
+    pub fn gmm_select_params(&self) -> fogline_stats::gmm::SelectParams {
+        fogline_stats::gmm::SelectParams {
+            k_max: self.k_max,
+            restarts: self.restarts,
+            n_init: self.n_init,
+            cv_folds: self.cv_folds,
+            seed: self.seed,
+            ..fogline_stats::gmm::SelectParams::default()
+        }
+    }
+
     /// Checks every parameter; call before analysing.
     pub fn validate(&self) -> Result<()> {
         let bad =
