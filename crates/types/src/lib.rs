@@ -16,6 +16,7 @@
 //! assert_eq!(fog.level, 0.7);
 //! ```
 
+pub mod clip;
 pub mod condition;
 pub mod pair;
 pub mod scenario;

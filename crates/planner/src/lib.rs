@@ -1,0 +1,1 @@
+//! The reference planner: sees only camera frames and the ego history.

@@ -1,0 +1,18 @@
+//! A procedural driving world.
+//!
+//! Scenes for every scenario class of the envelope paper, rendered by the four cameras of
+//! Alpamayo R1 (RGB, depth and 2-D boxes per frame), an ego history and the ground-truth
+//! future from a privileged expert; plus the on-disk clip format (`format`).
+//!
+//! Deterministic from a seed: the same `(WorldConfig, index)` gives the same clip, byte for
+//! byte.
+
+pub mod clip;
+pub mod config;
+pub mod error;
+pub mod generate;
+
+pub use clip::{CameraClip, CameraFrame, Clip, SceneInfo};
+pub use config::{ScenarioMix, WorldConfig};
+pub use error::WorldError;
+pub use generate::generate_clip;
