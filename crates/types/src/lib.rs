@@ -18,6 +18,7 @@
 
 pub mod clip;
 pub mod condition;
+pub mod motion;
 pub mod pair;
 pub mod scenario;
 

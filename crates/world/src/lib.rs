@@ -10,9 +10,15 @@
 pub mod clip;
 pub mod config;
 pub mod error;
+pub mod format;
 pub mod generate;
+pub mod objects;
+pub mod render;
+pub mod scenarios;
+pub mod scene;
 
 pub use clip::{CameraClip, CameraFrame, Clip, SceneInfo};
 pub use config::{ScenarioMix, WorldConfig};
 pub use error::WorldError;
+pub use format::{list_clips, read_clip, write_clip};
 pub use generate::generate_clip;
