@@ -1,8 +1,28 @@
 //! The reference planner: a camera-only driver that sees what a real camera planner sees —
 //! the frames of its cameras and the ego history — and nothing else. The crate depends on
 //! `fogline-types` only, so the crate graph itself proves it cannot read the scene.
+//!
+//! Perception is classical vision on the front-wide and front-tele cameras through their
+//! calibration and flat-ground geometry ([`perceive`]): lane markings fitted as a parabola
+//! (curvature fused with the ego history's), the occupancy of the ego lane and the lane to its
+//! left per 0.1 m lateral bin, the lead object (distance from its ground contact, speed from
+//! four frames, brake lamps, width at cabin height to tell vehicles from people), stop lines
+//! and zebra crossings, stop signs, lit signal lamps, and the end of the road at a junction.
+//! Planning ([`plan`]) turns that into one of the [`Decision`]s, a 64-waypoint trajectory with
+//! the shared motion primitives, and a one-sentence explanation whose wording depends only on
+//! what was perceived.
+//!
+//! Under perturbation it fails for perceptual reasons only: noise turns asphalt into "not
+//! road" (phantom obstacles) and hides markings, fog washes out paint and lamps at range,
+//! darkness drops lit lamps below their brightness thresholds.
 
-use fogline_types::clip::{PlannerInput, PlannerOutput};
+pub mod perceive;
+pub mod plan;
+pub mod vision;
+
+use fogline_types::clip::{Decision, PlannerInput, PlannerOutput};
+
+pub use perceive::Perception;
 
 /// Why the planner could not run on an input.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -23,9 +43,73 @@ impl ReferencePlanner {
         Self::default()
     }
 
-    /// Plans from `input`.
+    /// Plans from `input`: needs the front-wide camera (front-tele extends the range), at
+    /// least one frame per camera of `width × height × 3` bytes, and an ego history.
     pub fn plan(&self, input: &PlannerInput<'_>) -> Result<PlannerOutput, PlannerError> {
-        let _ = input;
-        Err(PlannerError::Input("the planner is being written".into()))
+        let (p, plan) = self.plan_with_perception(input)?;
+        let _ = p;
+        Ok(PlannerOutput {
+            trajectory: plan.trajectory,
+            explanation: plan.explanation,
+            decision: Some(plan.decision),
+        })
+    }
+
+    /// Plans and returns the perception behind the plan (for inspection and tests).
+    pub fn plan_with_perception(
+        &self,
+        input: &PlannerInput<'_>,
+    ) -> Result<(Perception, plan::Plan), PlannerError> {
+        validate(input)?;
+        let p = perceive::perceive(input);
+        let plan = plan::plan(&p);
+        Ok((p, plan))
     }
 }
+
+fn validate(input: &PlannerInput<'_>) -> Result<(), PlannerError> {
+    use fogline_types::clip::CameraId;
+    if !input
+        .cameras
+        .iter()
+        .any(|c| c.calib.id == CameraId::FrontWide)
+    {
+        return Err(PlannerError::Input(
+            "the front-wide camera (camera_front_wide_120fov) is required".into(),
+        ));
+    }
+    for cam in &input.cameras {
+        cam.calib.validate().map_err(PlannerError::Input)?;
+        if cam.frames.is_empty() {
+            return Err(PlannerError::Input(format!("{}: no frames", cam.calib.id)));
+        }
+        let expected = cam.calib.width as usize * cam.calib.height as usize * 3;
+        for (k, f) in cam.frames.iter().enumerate() {
+            if f.len() != expected {
+                return Err(PlannerError::Input(format!(
+                    "{} frame {k}: {} bytes, expected {expected} ({}x{} RGB8)",
+                    cam.calib.id,
+                    f.len(),
+                    cam.calib.width,
+                    cam.calib.height
+                )));
+            }
+        }
+    }
+    if input.ego_history.is_empty() {
+        return Err(PlannerError::Input("the ego history is empty".into()));
+    }
+    if input
+        .ego_history
+        .iter()
+        .any(|p| !(p.x_m.is_finite() && p.y_m.is_finite() && p.yaw_rad.is_finite()))
+    {
+        return Err(PlannerError::Input(
+            "the ego history has a non-finite pose".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Every decision the planner can take (re-exported for convenience).
+pub const DECISIONS: [Decision; 10] = Decision::ALL;

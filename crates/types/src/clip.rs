@@ -464,7 +464,9 @@ mod tests {
         assert!((a.fde(&b) - 3.0).abs() < 1e-12);
         assert!((a.l2(&b) - (9.0 * HORIZON as f64).sqrt()).abs() < 1e-12);
         assert!(a.validate().is_ok());
-        let short = Trajectory { xy: vec![[0.0, 0.0]] };
+        let short = Trajectory {
+            xy: vec![[0.0, 0.0]],
+        };
         assert!(short.validate().unwrap_err().contains("64"));
     }
 

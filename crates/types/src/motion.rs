@@ -296,8 +296,8 @@ pub fn follow(v0: f64, lead: Lead, idm: &Idm) -> Distances {
         for _ in 0..sub {
             let gap = (ls - s).max(0.1);
             let dv = v - lv;
-            let s_star =
-                idm.min_gap_m + (v * idm.headway_s + v * dv / (2.0 * (idm.accel * idm.decel).sqrt())).max(0.0);
+            let s_star = idm.min_gap_m
+                + (v * idm.headway_s + v * dv / (2.0 * (idm.accel * idm.decel).sqrt())).max(0.0);
             let free = 1.0 - (v / idm.v_desired.max(0.1)).powi(4);
             let a = (idm.accel * (free - (s_star / gap).powi(2))).max(-9.0);
             let v_next = (v + a * dt).max(0.0);
@@ -375,7 +375,11 @@ mod tests {
             &idm,
         );
         let lead_stop = 16.0 + 100.0 / 6.0;
-        assert!(b[63] < lead_stop - 1.0 && b[63] > lead_stop - 10.0, "{}", b[63]);
+        assert!(
+            b[63] < lead_stop - 1.0 && b[63] > lead_stop - 10.0,
+            "{}",
+            b[63]
+        );
         let t = slow_for_turn(10.0, 5.0, 2.0, 30.0, 15.0, 1.0, 8.0);
         assert!(t.windows(2).all(|w| w[1] >= w[0]));
     }

@@ -24,6 +24,15 @@ pub enum WorldError {
         /// What was wrong and what was expected.
         reason: String,
     },
+    /// A clip that cannot be written because it breaks the clip format's rules (see
+    /// [`crate::format::validate_clip`]).
+    #[error("invalid clip {clip:?}: {reason}")]
+    InvalidClip {
+        /// The clip id.
+        clip: String,
+        /// What was wrong.
+        reason: String,
+    },
     /// An I/O failure on a path.
     #[error("{}: {source}", path.display())]
     Io {

@@ -1,0 +1,5 @@
+//! Integration tests of fogline-world.
+
+#![allow(clippy::unwrap_used)]
+
+mod format;
