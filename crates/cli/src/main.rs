@@ -5,6 +5,8 @@
 //! (e.g. a scenario rejected under `--pi-star`), 2 error (the whole error chain is printed).
 
 mod perturb_cmd;
+mod planner_cmd;
+mod world_cmd;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -54,6 +56,10 @@ enum Command {
     Perturb(Box<perturb_cmd::PerturbArgs>),
     /// Benchmarks.
     Bench(perturb_cmd::BenchArgs),
+    /// The synthetic driving world: generate a corpus of clips, or show (and check) one clip.
+    World(world_cmd::WorldArgs),
+    /// The reference planner: evaluate it on generated clips, clean and perturbed.
+    Planner(planner_cmd::PlannerArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -212,6 +218,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Demo(a) => demo(a),
         Command::Perturb(a) => perturb_cmd::perturb(*a),
         Command::Bench(a) => perturb_cmd::bench(a),
+        Command::World(a) => world_cmd::world(a),
+        Command::Planner(a) => planner_cmd::planner(a),
     }
 }
 

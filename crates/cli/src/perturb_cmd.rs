@@ -83,6 +83,12 @@ enum BenchCommand {
         after_help = "Examples:\n  fogline bench perturb\n  fogline bench perturb --width 640 --height 360 --runs 3 --json\n  scripts/perturb-peers.sh    # installs the Python peers, then runs --peers"
     )]
     Perturb(BenchPerturbArgs),
+    /// Generating + rendering clips in memory on every core (s, clips/s, ms/clip), then the
+    /// reference planner's time per clip on one thread (median, p95), next to their goals.
+    #[command(
+        after_help = "Examples:\n  fogline bench world                    # 1,996 clips at 576x320\n  fogline bench world --clips 200 --json"
+    )]
+    World(crate::planner_cmd::BenchWorldArgs),
 }
 
 #[derive(Args)]
@@ -601,24 +607,34 @@ fn process(job: &Job<'_>, t: &Task) -> Result<FrameRecord> {
 }
 
 /// A one-line progress counter on stderr, shown only when stderr is a terminal.
-struct Progress {
+pub(crate) struct Progress {
     total: usize,
     done: AtomicUsize,
     enabled: bool,
     last: Mutex<Instant>,
+    /// What is counted (`frames`, `clips`).
+    unit: &'static str,
 }
 
 impl Progress {
-    fn new(total: usize) -> Self {
+    /// A bar over `total` frames.
+    pub(crate) fn new(total: usize) -> Self {
+        Self::counting(total, "frames")
+    }
+
+    /// A bar over `total` items called `unit`; drawn on stderr only when it is a terminal and
+    /// info logging is on.
+    pub(crate) fn counting(total: usize, unit: &'static str) -> Self {
         Self {
             total,
             done: AtomicUsize::new(0),
             enabled: std::io::stderr().is_terminal() && log::log_enabled!(log::Level::Info),
             last: Mutex::new(Instant::now()),
+            unit,
         }
     }
 
-    fn inc(&self) {
+    pub(crate) fn inc(&self) {
         let done = self.done.fetch_add(1, Ordering::Relaxed) + 1;
         if !self.enabled {
             return;
@@ -630,15 +646,16 @@ impl Progress {
             let width = 30;
             let filled = width * done / self.total.max(1);
             eprint!(
-                "\r[{}{}] {done}/{} frames",
+                "\r[{}{}] {done}/{} {}",
                 "#".repeat(filled),
                 " ".repeat(width - filled),
-                self.total
+                self.total,
+                self.unit
             );
         }
     }
 
-    fn finish(&self) {
+    pub(crate) fn finish(&self) {
         if self.enabled {
             eprintln!();
         }
@@ -652,6 +669,7 @@ impl Progress {
 pub fn bench(a: BenchArgs) -> Result<ExitCode> {
     match a.what {
         BenchCommand::Perturb(p) => bench_perturb(p),
+        BenchCommand::World(w) => crate::planner_cmd::bench_world(w),
     }
 }
 

@@ -119,6 +119,19 @@ impl<'a> Eyes<'a> {
         self.point([x, y, 0.0])
     }
 
+    /// Like [`Eyes::ground`] over a 4×4 patch: for the road surface and objects on it.
+    #[inline]
+    fn surface(&self, x: f64, y: f64) -> Option<[f32; 3]> {
+        let p = [x, y, 0.0];
+        if p[0] >= 13.0
+            && let Some(t) = &self.tele
+            && let Some(c) = t.at_point_k(p, 4)
+        {
+            return Some(c);
+        }
+        self.wide.as_ref().and_then(|w| w.at_point_k(p, 4))
+    }
+
     #[inline]
     fn point(&self, p: [f64; 3]) -> Option<[f32; 3]> {
         if p[0] >= 13.0
@@ -189,15 +202,30 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
     };
     let centre = |x: f64| lane_offset + 0.5 * kappa * x * x;
     // Occupancy of the ego lane: first blocked distance per lateral bin.
-    let xs = sample_distances();
-    let inner = lane_width / 2.0 - 0.25;
-    let ego_bins = first_blocked(&eyes, &xs, &centre, 0.0, inner, road_lum);
-    let left_bins = first_blocked(&eyes, &xs, &centre, lane_width, inner, road_lum);
+    let (stop_line, zebra) = transverse_marks(&eyes, &centre, road_lum);
+    // Ground samples are trusted while the lane model's lateral sag stays within 3 m.
+    let x_max = if kappa.abs() > 1e-6 {
+        (6.0 / kappa.abs()).sqrt().min(70.0)
+    } else {
+        70.0
+    };
+    let xs: Vec<f64> = sample_distances()
+        .into_iter()
+        .filter(|&x| x <= x_max)
+        .collect();
+    // On a stop line or a crossing, grey brighter than asphalt is paint seen edge-on.
+    let painted = |x: f64| {
+        stop_line.is_some_and(|s| (x - s).abs() < 1.0)
+            || zebra.is_some_and(|z| x > z - 0.5 && x < z + 4.0)
+    };
+    let inner = lane_width / 2.0 - 0.4;
+    let ego_bins = first_blocked(&eyes, &xs, &centre, 0.0, inner, road_lum, &painted);
+    let left_bins = first_blocked(&eyes, &xs, &centre, lane_width, 1.0, road_lum, &painted);
     let road_end = road_end(&ego_bins, &left_bins);
     let right_branch =
         road_end.is_some_and(|x_end| right_branch(&eyes, &centre, x_end, lane_width, road_lum));
     let lead = road_end
-        .map_or(true, |_| false)
+        .is_none()
         .then(|| lead_of(input, &eyes, &ego_bins, &centre, road_lum, speed))
         .flatten()
         .or_else(|| {
@@ -215,9 +243,18 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
     let left_dashed = lane.is_some_and(|l| l.left_dashed_white);
     // Beyond the lead, the left lane is hidden behind it: look up to just past the lead.
     let horizon = lead.map_or(60.0, |l| (l.contact_x + 3.0).min(60.0));
-    let left_lane_free =
-        left_dashed && left_bins.iter().filter(|x| !x.is_nan()).all(|&x| x > horizon);
-    let (stop_line, zebra) = transverse_marks(&eyes, &centre, road_lum);
+    let left_lane_free = left_dashed
+        && left_bins
+            .iter()
+            .filter(|x| !x.is_nan())
+            .all(|&x| x > horizon);
+    // Anything nearly stationary standing on a crossing is a road user crossing there.
+    let lead = lead.map(|mut l| {
+        if zebra.is_some_and(|z| l.contact_x > z - 1.0 && l.contact_x < z + 4.0) && l.speed < 2.0 {
+            l.kind = ObjectKind::Person;
+        }
+        l
+    });
     let light = traffic_light(&eyes);
     let stop_sign = stop_sign(&eyes);
     Perception {
@@ -246,7 +283,7 @@ fn road_reference(eyes: &Eyes<'_>, kappa: f64) -> f32 {
         let x = 5.0 + 0.6 * i as f64;
         for j in -3..=3 {
             let y = 0.5 * kappa * x * x + 0.25 * j as f64;
-            if let Some(c) = eyes.ground(x, y)
+            if let Some(c) = eyes.surface(x, y)
                 && chroma(c) < 30.0
             {
                 v.push(lum(c));
@@ -290,14 +327,11 @@ fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: f32) -> Option<LaneSeen> {
                 y += 0.04;
             }
             let expect = if left { 1.75 } else { -1.75 };
-            let best = runs
-                .iter()
-                .filter(|r| r.1 - r.0 <= 0.35)
-                .min_by(|a, b| {
-                    let da = (0.5 * (a.0 + a.1) - expect).abs();
-                    let db = (0.5 * (b.0 + b.1) - expect).abs();
-                    da.total_cmp(&db)
-                });
+            let best = runs.iter().filter(|r| r.1 - r.0 <= 0.35).min_by(|a, b| {
+                let da = (0.5 * (a.0 + a.1) - expect).abs();
+                let db = (0.5 * (b.0 + b.1) - expect).abs();
+                da.total_cmp(&db)
+            });
             if let Some(&(a, b, n, yellow)) = best {
                 let ym = 0.5 * (a + b);
                 pts.push((x, yc + ym, left));
@@ -388,6 +422,7 @@ fn first_blocked(
     shift: f64,
     inner: f64,
     road: f32,
+    painted: &dyn Fn(f64) -> bool,
 ) -> Vec<f64> {
     (-HALF_LANE_BINS..=HALF_LANE_BINS)
         .map(|b| {
@@ -399,9 +434,10 @@ fn first_blocked(
             // painted line seen at a grazing angle does not.
             let mut run = 0;
             for (i, &x) in xs.iter().enumerate() {
-                let blocked = eyes
-                    .ground(x, centre(x) + y)
-                    .is_some_and(|c| !is_road(c, road));
+                let blocked = eyes.surface(x, centre(x) + y).is_some_and(|c| {
+                    let paint_blend = painted(x) && chroma(c) < 30.0 && lum(c) > road - 10.0;
+                    !(is_road(c, road) || paint_blend)
+                });
                 run = if blocked { run + 1 } else { 0 };
                 if run == 4 {
                     return xs[i - 3];
@@ -416,7 +452,12 @@ fn first_blocked(
 /// blocked at about the same distance.
 fn road_end(ego: &[f64], left: &[f64]) -> Option<f64> {
     // Bins outside the lane interiors are NaN (not sampled).
-    let all: Vec<f64> = ego.iter().chain(left).copied().filter(|x| !x.is_nan()).collect();
+    let all: Vec<f64> = ego
+        .iter()
+        .chain(left)
+        .copied()
+        .filter(|x| !x.is_nan())
+        .collect();
     if all.is_empty() {
         return None;
     }
@@ -486,22 +527,29 @@ fn lead_of(
     // Widths at body height (0.5 m) and cabin/torso height (1.3 m), just behind the contact:
     // a vehicle is wide at both, a pedestrian at neither, a cyclist only at the bicycle.
     let xw = contact + 0.4;
+    let mid = 0.5 * (left_edge + right_edge);
     let width_at = |z: f64| {
-        let mut bins = 0;
-        for b in -16..=16 {
-            let y = centre(xw) + f64::from(b) * BIN;
-            if eyes
-                .point([xw, y, z])
-                .is_some_and(|c| is_object(c, road) && !is_sky_like(c))
-            {
-                bins += 1;
-            }
+        // The contiguous run of object pixels through the object's middle (background seen
+        // past a narrow object is usually not contiguous with it).
+        let hit = |b: i32| {
+            let y = centre(xw) + mid + f64::from(b) * BIN;
+            eyes.point([xw, y, z]).is_some_and(|c| is_object(c, road))
+        };
+        let start = (-3..=3).find(|&b| hit(b));
+        let Some(b0) = start else { return 0.0 };
+        let (mut lo, mut hi) = (b0, b0);
+        while lo > -25 && hit(lo - 1) {
+            lo -= 1;
         }
-        f64::from(bins) * BIN
+        while hi < 25 && hit(hi + 1) {
+            hi += 1;
+        }
+        f64::from(hi - lo + 1) * BIN
     };
     let (low, high) = (width_at(0.5), width_at(1.3));
     let width_m = low.min(high);
-    let kind = if width_m >= 1.0 {
+    // Ground contact across ≥ 1.2 m (two wheels) or a wide body: a vehicle.
+    let kind = if width_m >= 1.0 || left_edge - right_edge >= 1.2 {
         ObjectKind::Vehicle
     } else {
         ObjectKind::Person
@@ -524,12 +572,9 @@ fn lead_of(
 const REAR_WHEEL_TO_BUMPER: f64 = 0.57;
 
 /// Clearly not the road surface (a tighter test than [`is_road`], for pixels above ground).
+/// (Only used above the ground, where there is no paint and, below the camera, no sky.)
 fn is_object(c: [f32; 3], road: f32) -> bool {
-    ((lum(c) - road).abs() > 14.0 || chroma(c) > 24.0) && !is_white_paint(c, road)
-}
-
-fn is_sky_like(c: [f32; 3]) -> bool {
-    c[2] > 170.0 && c[2] >= c[0]
+    (lum(c) - road).abs() > 14.0 || chroma(c) > 24.0
 }
 
 fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bool {
@@ -562,7 +607,7 @@ fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bo
     let mut n = 0;
     for v in v0..=v1.min(h - 1) {
         for u in u0..=u1.min(w - 1) {
-            n += usize::from(is_red_lamp(view.pixel(u, v)));
+            n += usize::from(is_red_lamp(view.pixel(u, v)) && is_red_lamp(view.patch2(u, v)));
         }
     }
     n >= 2
@@ -601,7 +646,7 @@ fn lead_speed(
             let mut x = lo.max(4.5);
             while x <= hi {
                 let blocked = eyes
-                    .ground(x, centre(x + ego_x) + y)
+                    .surface(x, centre(x + ego_x) + y)
                     .is_some_and(|c| !is_road(c, road));
                 if blocked && prev {
                     best = best.min(x - 0.1);
@@ -690,7 +735,7 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
     for view in [&eyes.tele, &eyes.wide].into_iter().flatten() {
         let cy = view.calib.cy;
         let top = (cy - 2.0).max(0.0) as usize;
-        let (mut r, mut g, mut a) = ((0usize, 0.0f64), (0usize, 0.0f64), (0usize, 0.0f64));
+        let (mut r, mut g, mut a) = (Vec::new(), Vec::new(), Vec::new());
         let w = view.width();
         let lo = (w as f64 * 0.2) as usize;
         let hi = (w as f64 * 0.8) as usize;
@@ -700,18 +745,33 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
                 if c[0] < 190.0 && c[1] < 180.0 {
                     continue;
                 }
-                if is_red_lamp(c) {
-                    r.0 += 1;
-                    r.1 += v as f64;
-                } else if is_green_lamp(c) {
-                    g.0 += 1;
-                    g.1 += v as f64;
-                } else if is_amber_lamp(c) {
-                    a.0 += 1;
-                    a.1 += v as f64;
+                // Confirmed on the 2×2 mean: a lit lamp is a patch, noise is a speck.
+                let m = view.patch2(u, v);
+                if is_red_lamp(c) && is_red_lamp(m) {
+                    r.push((u, v));
+                } else if is_green_lamp(c) && is_green_lamp(m) {
+                    g.push((u, v));
+                } else if is_amber_lamp(c) && is_amber_lamp(m) {
+                    a.push((u, v));
                 }
             }
         }
+        // The largest compact cluster of each colour: (pixels, mean row).
+        let compact = |pts: Vec<(usize, usize)>| -> (usize, f64) {
+            let mut best: (usize, f64) = (0, 0.0);
+            for &(u0, v0) in pts.iter().take(400) {
+                let near: Vec<&(usize, usize)> = pts
+                    .iter()
+                    .filter(|p| p.0.abs_diff(u0) <= 6 && p.1.abs_diff(v0) <= 6)
+                    .collect();
+                if near.len() > best.0 {
+                    let vm = near.iter().map(|p| p.1 as f64).sum::<f64>() / near.len() as f64;
+                    best = (near.len(), vm);
+                }
+            }
+            best
+        };
+        let (r, g, a) = (compact(r), compact(g), compact(a));
         let best = [
             (Lamp::Red, r, 5.52),
             (Lamp::Amber, a, 5.2),
@@ -719,9 +779,9 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
         ]
         .into_iter()
         .max_by_key(|(_, (n, _), _)| *n)?;
-        let (lamp, (n, vsum), h) = best;
-        if n >= 2 {
-            let v = vsum / n as f64 + 0.5;
+        let (lamp, (n, vmean), h) = best;
+        if n >= 3 {
+            let v = vmean + 0.5;
             let elev = (cy - v) / view.calib.fy;
             let dist = if elev > 1e-3 {
                 (h - view.calib.z_m) / elev
@@ -736,7 +796,7 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
 
 /// A stop sign: a compact patch of sign red, right of centre, well above the horizon.
 fn stop_sign(eyes: &Eyes<'_>) -> Option<f64> {
-    for (view, min_px) in [(&eyes.tele, 12usize), (&eyes.wide, 5usize)] {
+    for (view, min_px) in [(&eyes.tele, 12usize), (&eyes.wide, 8usize)] {
         let Some(view) = view else { continue };
         let (cx, cy) = (view.calib.cx, view.calib.cy);
         let (w, _) = (view.width(), view.height());
@@ -744,7 +804,7 @@ fn stop_sign(eyes: &Eyes<'_>) -> Option<f64> {
         for v in 0..(cy - 1.0).max(0.0) as usize {
             for u in (cx as usize + 3)..w {
                 let c = view.pixel(u, v);
-                if is_sign_red(c) && !is_red_lamp(c) {
+                if is_sign_red(c) && !is_red_lamp(c) && is_sign_red(view.patch2(u, v)) {
                     pts.push((u, v));
                 }
             }

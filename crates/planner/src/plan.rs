@@ -120,7 +120,7 @@ pub fn plan(p: &Perception) -> Plan {
     if let Some(l) = lead {
         let w = p.lane_width;
         let room_right = l.right_edge - (-w / 2.0);
-        if l.right_edge > -0.25 && room_right >= EGO_WIDTH_M + 0.3 {
+        if l.right_edge > -0.25 && room_right >= EGO_WIDTH_M + 0.3 && l.contact_x < 45.0 {
             let edge = l.right_edge;
             let offset =
                 (edge - 0.5 - EGO_WIDTH_M / 2.0).clamp(-(w / 2.0 - EGO_WIDTH_M / 2.0 + 0.3), 0.0);

@@ -48,6 +48,53 @@ impl<'a> View<'a> {
         Some([acc[0] / 4.0, acc[1] / 4.0, acc[2] / 4.0])
     }
 
+    /// The mean colour of the `k × k` pixels around `(u, v)` (a larger patch for large
+    /// structures: the road surface and objects on it), or `None` outside the image.
+    #[inline]
+    pub fn at_k(&self, u: f64, v: f64, k: usize) -> Option<[f32; 3]> {
+        let (w, h) = (self.width(), self.height());
+        let half = k as f64 / 2.0;
+        let x = (u - half).round();
+        let y = (v - half).round();
+        if x < 0.0 || y < 0.0 || x + k as f64 > w as f64 || y + k as f64 > h as f64 {
+            return None;
+        }
+        let (x, y) = (x as usize, y as usize);
+        let mut acc = [0f32; 3];
+        for dy in 0..k {
+            let row = ((y + dy) * w + x) * 3;
+            for px in self.rgb[row..row + 3 * k].chunks_exact(3) {
+                acc[0] += f32::from(px[0]);
+                acc[1] += f32::from(px[1]);
+                acc[2] += f32::from(px[2]);
+            }
+        }
+        let n = (k * k) as f32;
+        Some([acc[0] / n, acc[1] / n, acc[2] / n])
+    }
+
+    /// [`View::at_k`] at a rig-frame point.
+    #[inline]
+    pub fn at_point_k(&self, p: [f64; 3], k: usize) -> Option<[f32; 3]> {
+        let (u, v, _) = self.calib.project(p)?;
+        self.at_k(u, v, k)
+    }
+
+    /// The mean of the 2×2 pixels whose top-left is `(x, y)` (clamped at the image edge).
+    #[inline]
+    pub fn patch2(&self, x: usize, y: usize) -> [f32; 3] {
+        let (w, h) = (self.width(), self.height());
+        let (x, y) = (x.min(w.saturating_sub(2)), y.min(h.saturating_sub(2)));
+        let mut acc = [0f32; 3];
+        for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+            let c = self.pixel(x + dx, y + dy);
+            acc[0] += c[0];
+            acc[1] += c[1];
+            acc[2] += c[2];
+        }
+        [acc[0] / 4.0, acc[1] / 4.0, acc[2] / 4.0]
+    }
+
     /// The single pixel at integer position, no averaging.
     #[inline]
     pub fn pixel(&self, x: usize, y: usize) -> [f32; 3] {
@@ -130,5 +177,5 @@ pub fn is_amber_lamp(c: [f32; 3]) -> bool {
 /// Sign red: saturated red, not necessarily bright.
 #[inline]
 pub fn is_sign_red(c: [f32; 3]) -> bool {
-    c[0] > 90.0 && c[0] > 2.2 * c[1] && c[0] > 2.2 * c[2]
+    c[0] > 60.0 && c[0] > 2.2 * c[1] && c[0] > 2.2 * c[2]
 }

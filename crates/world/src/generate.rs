@@ -77,5 +77,5 @@ fn render_clip(built: &Built, config: &WorldConfig, id: String, scenario: &str) 
 }
 
 fn round_time(t: f64) -> f64 {
-    (t * 1000.0).round() / 1000.0
+    (t * 1000.0).round() / 1000.0 + 0.0
 }

@@ -8,7 +8,10 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
         ("fogline-types", &[][..]),
         ("fogline-stats", &["fogline-types"][..]),
         ("fogline-perturb", &["fogline-types", "fogline-stats"][..]),
-        ("fogline-world", &["fogline-types"][..]),
+        (
+            "fogline-world",
+            &["fogline-types", "fogline-stats", "fogline-perturb"][..],
+        ),
         ("fogline-planner", &["fogline-types"][..]),
         ("fogline-rco", &["fogline-types"][..]),
         ("fogline-envelope", &["fogline-types", "fogline-stats"][..]),

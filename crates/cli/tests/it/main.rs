@@ -5,3 +5,6 @@
 mod architecture;
 mod envelope_cmd;
 mod perturb_cmd;
+mod planner_cmd;
+mod reference_planner;
+mod world_cmd;

@@ -1,0 +1,366 @@
+//! `fogline world generate` (a corpus of synthetic clips in the clip format, see
+//! docs/clip-format.md) and `fogline world show` (a summary of one clip directory, which also
+//! checks it against the format).
+
+use std::collections::BTreeSet;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Subcommand, ValueEnum};
+use fogline_world::config::SCENARIOS;
+use fogline_world::{Clip, ScenarioMix, WorldConfig};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::write_atomic;
+use crate::perturb_cmd::Progress;
+
+/// Name of the corpus manifest, written last into the output directory.
+const CORPUS: &str = "corpus.json";
+
+#[derive(Args)]
+pub struct WorldArgs {
+    #[command(subcommand)]
+    what: WorldCommand,
+}
+
+#[derive(Subcommand)]
+enum WorldCommand {
+    /// Generate a corpus of synthetic clips: four cameras (RGB, depth, boxes), ego history,
+    /// the expert's ground-truth future; one directory per clip, then corpus.json.
+    #[command(
+        after_help = "Examples:\n  fogline world generate --out corpus/                       # the paper's 1,996-clip mix\n  fogline world generate --out small/ --clips 80 --mix uniform --width 288 --height 160\n  fogline world generate --out stops/ --clips 50 --scenario STOP_SIGNAL --seed 3"
+    )]
+    Generate(GenerateArgs),
+    /// Print a summary of one clip directory; fails (exit 2) naming the file when the
+    /// directory does not follow the clip format (docs/clip-format.md).
+    #[command(after_help = "Example:\n  fogline world show corpus/stop_signal_00695")]
+    Show(ShowArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MixArg {
+    /// The envelope paper's proportions (213/7/475/177/40/302/344/438 of 1,996).
+    Paper,
+    /// The same number of clips for every scenario.
+    Uniform,
+}
+
+#[derive(Args)]
+struct GenerateArgs {
+    /// Output directory (created if missing): one directory per clip, named by its id, and
+    /// corpus.json (written last, so its presence means the run completed).
+    #[arg(long)]
+    out: PathBuf,
+    /// Clips in the corpus.
+    #[arg(long, default_value_t = 1996)]
+    clips: usize,
+    /// Corpus seed: clip i draws its randomness from (seed, i), whatever else is generated.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Scenario mix, scaled to --clips.
+    #[arg(long, value_enum, default_value = "paper")]
+    mix: MixArg,
+    /// Generate only this scenario: LANE_KEEPING, NUDGE_RIGHT, FOLLOW_VEHICLE, PASSING,
+    /// TURN_RIGHT, STOP_SIGNAL, INTERSECTION or OTHER.
+    #[arg(long, conflicts_with = "mix")]
+    scenario: Option<String>,
+    /// Image width of every camera, pixels (16..=1920).
+    #[arg(long, default_value_t = 576)]
+    width: u32,
+    /// Image height of every camera, pixels (16..=1080).
+    #[arg(long, default_value_t = 320)]
+    height: u32,
+    /// Do not render depth maps (Koschmieder fog needs them).
+    #[arg(long)]
+    no_depth: bool,
+    /// Clips generated in parallel (default: --threads, else all cores). The corpus does not
+    /// depend on it.
+    #[arg(long)]
+    jobs: Option<usize>,
+}
+
+#[derive(Args)]
+struct ShowArgs {
+    /// A clip directory (the one holding clip.json).
+    clip: PathBuf,
+}
+
+/// One clip in corpus.json.
+#[derive(Serialize)]
+struct CorpusClip {
+    id: String,
+    scenario: String,
+}
+
+/// corpus.json: what was generated, deterministic (no times, no paths).
+#[derive(Serialize)]
+struct Corpus<'a> {
+    format: &'static str,
+    version: u32,
+    generated_by: String,
+    config: &'a WorldConfig,
+    n_clips: usize,
+    clips: Vec<CorpusClip>,
+}
+
+pub fn world(a: WorldArgs) -> Result<ExitCode> {
+    match a.what {
+        WorldCommand::Generate(g) => generate(g),
+        WorldCommand::Show(s) => show(&s),
+    }
+}
+
+/// `total` clips spread evenly over the scenarios (the first ones get the remainder).
+fn uniform(total: usize) -> ScenarioMix {
+    let n = SCENARIOS.len();
+    ScenarioMix {
+        counts: SCENARIOS
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (s.to_string(), total / n + usize::from(i < total % n)))
+            .collect(),
+    }
+}
+
+fn generate(a: GenerateArgs) -> Result<ExitCode> {
+    let t0 = Instant::now();
+    if a.clips == 0 {
+        bail!("--clips must be at least 1");
+    }
+    if a.jobs == Some(0) {
+        bail!("--jobs must be at least 1");
+    }
+    let mix = match (&a.scenario, a.mix) {
+        (Some(s), _) => ScenarioMix::only(s, a.clips).context("--scenario")?,
+        (None, MixArg::Paper) => ScenarioMix::paper_scaled(a.clips),
+        (None, MixArg::Uniform) => uniform(a.clips),
+    };
+    let config = WorldConfig {
+        seed: a.seed,
+        width: a.width,
+        height: a.height,
+        depth: !a.no_depth,
+        mix,
+    };
+    config
+        .validate()
+        .context("invalid world parameters (--width, --height, --scenario)")?;
+    if a.out.exists() && !a.out.is_dir() {
+        bail!("--out {} exists and is not a directory", a.out.display());
+    }
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    // A manifest from an earlier run would claim that this one completed.
+    let manifest = a.out.join(CORPUS);
+    if manifest.exists() {
+        std::fs::remove_file(&manifest)
+            .with_context(|| format!("cannot remove the old {}", manifest.display()))?;
+    }
+    let total = config.mix.total();
+    let pool = match a.jobs {
+        Some(j) => Some(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(j)
+                .build()
+                .context("cannot start the worker threads")?,
+        ),
+        None => None,
+    };
+    let jobs = pool
+        .as_ref()
+        .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
+    log::info!(
+        "world generate: {total} clips, seed {}, {}x{}{}, {jobs} jobs, into {}",
+        config.seed,
+        config.width,
+        config.height,
+        if config.depth { " + depth" } else { "" },
+        a.out.display()
+    );
+    let progress = Progress::counting(total, "clips");
+    let work = || -> Result<Vec<CorpusClip>> {
+        (0..total)
+            .into_par_iter()
+            .map(|i| {
+                let clip = fogline_world::generate_clip(&config, i)
+                    .with_context(|| format!("cannot generate clip {i}"))?;
+                fogline_world::write_clip(&a.out, &clip)
+                    .with_context(|| format!("cannot write clip {}", clip.id))?;
+                progress.inc();
+                Ok(CorpusClip {
+                    id: clip.id,
+                    scenario: clip.scenario,
+                })
+            })
+            .collect()
+    };
+    let clips = match &pool {
+        Some(p) => p.install(work),
+        None => work(),
+    };
+    progress.finish();
+    let clips = clips?;
+
+    let ids: BTreeSet<&str> = clips.iter().map(|c| c.id.as_str()).collect();
+    let stale = fogline_world::list_clips(&a.out)?
+        .iter()
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_none_or(|n| !ids.contains(n))
+        })
+        .count();
+    if stale > 0 {
+        log::warn!(
+            "{} holds {stale} clip directories from an earlier run that are not in this corpus \
+             (corpus.json lists only this run's clips)",
+            a.out.display()
+        );
+    }
+    let corpus = Corpus {
+        format: "fogline-corpus",
+        version: 1,
+        generated_by: format!("fogline {}", env!("CARGO_PKG_VERSION")),
+        config: &config,
+        n_clips: clips.len(),
+        clips,
+    };
+    let mut bytes = serde_json::to_vec_pretty(&corpus)?;
+    bytes.push(b'\n');
+    write_atomic(&manifest, &bytes)?;
+
+    let secs = t0.elapsed().as_secs_f64();
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
+        "{} clips (seed {}, {}x{}, {}) in {secs:.2} s, {:.1} clips/s, into {}",
+        corpus.n_clips,
+        config.seed,
+        config.width,
+        config.height,
+        if config.depth {
+            "with depth"
+        } else {
+            "no depth"
+        },
+        corpus.n_clips as f64 / secs.max(1e-9),
+        a.out.display()
+    )?;
+    writeln!(out, "{:<16} {:>6}", "scenario", "clips")?;
+    for (s, _) in config.mix.counts.iter().filter(|(_, n)| *n > 0) {
+        let n = corpus.clips.iter().filter(|c| &c.scenario == s).count();
+        writeln!(out, "{s:<16} {n:>6}")?;
+    }
+    writeln!(out, "{}", manifest.display())?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn show(a: &ShowArgs) -> Result<ExitCode> {
+    let clip = fogline_world::read_clip(&a.clip).with_context(|| {
+        // A corpus directory given by mistake: say so.
+        let clips = if a.clip.join(fogline_world::format::CLIP_JSON).exists() {
+            0
+        } else {
+            fogline_world::list_clips(&a.clip).map_or(0, |v| v.len())
+        };
+        if clips > 0 {
+            format!(
+                "{} is not a clip but holds {clips} clip directories: give one of them",
+                a.clip.display()
+            )
+        } else {
+            format!("{} is not a valid clip", a.clip.display())
+        }
+    })?;
+    let mut out = std::io::stdout().lock();
+    write_summary(&mut out, &a.clip, &clip)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The summary `world show` prints (`+ 0.0` turns a `-0` time into `0`).
+fn write_summary(out: &mut impl std::io::Write, dir: &Path, clip: &Clip) -> Result<()> {
+    let times: Vec<String> = clip
+        .cameras
+        .first()
+        .map(|c| {
+            c.frames
+                .iter()
+                .map(|f| format!("{}", f.t_s + 0.0))
+                .collect()
+        })
+        .unwrap_or_default();
+    writeln!(out, "clip          {} ({})", clip.id, dir.display())?;
+    writeln!(out, "scenario      {}", clip.scenario)?;
+    writeln!(
+        out,
+        "frames        {} per camera at t = {} s",
+        times.len(),
+        times.join(", ")
+    )?;
+    writeln!(
+        out,
+        "{:<28} {:>10} {:>6}  boxes per frame",
+        "camera", "size", "depth"
+    )?;
+    for cam in &clip.cameras {
+        let boxes: Vec<String> = cam
+            .frames
+            .iter()
+            .map(|f| f.boxes.len().to_string())
+            .collect();
+        let depth = cam.frames.iter().all(|f| f.depth.is_some());
+        writeln!(
+            out,
+            "{:<28} {:>10} {:>6}  {}",
+            cam.calib.id.name(),
+            format!("{}x{}", cam.calib.width, cam.calib.height),
+            if depth { "yes" } else { "no" },
+            boxes.join(" ")
+        )?;
+    }
+    if let (Some(first), Some(last)) = (clip.ego_history.first(), clip.ego_history.last()) {
+        writeln!(
+            out,
+            "ego history   {} poses, t = {} … {} s, speed at t0 {:.2} m/s",
+            clip.ego_history.len(),
+            first.t_s + 0.0,
+            last.t_s + 0.0,
+            last.speed_mps
+        )?;
+    }
+    if let (Some(a), Some(b)) = (clip.ground_truth.xy.first(), clip.ground_truth.xy.last()) {
+        writeln!(
+            out,
+            "ground truth  {} waypoints: first ({:.2}, {:.2}) m, last ({:.2}, {:.2}) m",
+            clip.ground_truth.xy.len(),
+            a[0],
+            a[1],
+            b[0],
+            b[1]
+        )?;
+    }
+    writeln!(
+        out,
+        "decision      {}",
+        clip.scene
+            .decision
+            .map_or_else(|| "(not given)".to_string(), |d| d.name().to_string())
+    )?;
+    if !clip.scene.facts.is_empty() {
+        let facts: Vec<String> = clip
+            .scene
+            .facts
+            .iter()
+            .map(|(k, v)| match v {
+                serde_json::Value::String(s) => format!("{k}={s}"),
+                other => format!("{k}={other}"),
+            })
+            .collect();
+        writeln!(out, "facts         {}", facts.join(", "))?;
+    }
+    Ok(())
+}
