@@ -267,15 +267,20 @@ fn say_nudge(d: f64, offset: f64) -> String {
     pick(&o, bucket(d, 5.0) + bucket(-offset, 0.25) * 7 + 4).replace("DIST", &fmt_m(d))
 }
 
+/// A lead-vehicle phrasing with its kind (`VEH`) and gap (`DIST`) filled in.
+fn about_lead(options: &[&str], gap: f64, width: f64, salt: u64) -> String {
+    pick(options, bucket(gap, 5.0) + salt)
+        .replace("VEH", vehicle_word(width))
+        .replace("DIST", &fmt_m(gap))
+}
+
 fn say_slow(gap: f64, width: f64) -> String {
     let o = [
         "Slow down because the lead VEH is braking ahead.",
         "Brake: the VEH in front shows brake lights DIST m ahead.",
         "Decelerate to keep distance from the braking VEH.",
     ];
-    pick(&o, bucket(gap, 5.0) + 5)
-        .replace("VEH", vehicle_word(width))
-        .replace("DIST", &fmt_m(gap))
+    about_lead(&o, gap, width, 5)
 }
 
 fn say_pass(gap: f64, width: f64) -> String {
@@ -284,9 +289,7 @@ fn say_pass(gap: f64, width: f64) -> String {
         "Pass the slower VEH on the left; the left lane is clear.",
         "Overtake the VEH about DIST m ahead using the free left lane.",
     ];
-    pick(&o, bucket(gap, 5.0) + 6)
-        .replace("VEH", vehicle_word(width))
-        .replace("DIST", &fmt_m(gap))
+    about_lead(&o, gap, width, 6)
 }
 
 fn say_follow(gap: f64, width: f64) -> String {
@@ -295,9 +298,7 @@ fn say_follow(gap: f64, width: f64) -> String {
         "Keep a steady gap of about DIST m behind the lead VEH.",
         "Match the speed of the VEH in front and stay in the lane.",
     ];
-    pick(&o, bucket(gap, 5.0) + 7)
-        .replace("VEH", vehicle_word(width))
-        .replace("DIST", &fmt_m(gap))
+    about_lead(&o, gap, width, 7)
 }
 
 fn say_green(d: f64) -> String {

@@ -176,6 +176,37 @@ impl Ctx {
     ) -> f64 {
         let parts = objects::vehicle(&mut self.draw, truck, braking);
         let (pos, h) = on_path(path, s, d);
+        let yaw = if dir > 0.0 { h } else { h + PI };
+        self.push_vehicle(parts, pos, yaw, speed, accel, truck)
+    }
+
+    /// A lead vehicle in the ego lane, its rear bumper `gap` m ahead of the ego's front.
+    #[allow(clippy::too_many_arguments)]
+    fn lead_on(
+        &mut self,
+        path: &Path,
+        gap: f64,
+        speed: f64,
+        accel: f64,
+        truck: bool,
+        braking: bool,
+    ) {
+        let parts = objects::vehicle(&mut self.draw, truck, braking);
+        let centre_s = EGO_FRONT_M + gap + length_of(&parts) / 2.0;
+        let (pos, h) = on_path(path, centre_s, 0.0);
+        self.push_vehicle(parts, pos, h, speed, accel, truck);
+    }
+
+    /// Adds a tracked car or truck; returns its length.
+    fn push_vehicle(
+        &mut self,
+        parts: Vec<crate::scene::Part>,
+        pos: [f64; 2],
+        yaw: f64,
+        speed: f64,
+        accel: f64,
+        truck: bool,
+    ) -> f64 {
         let class = if truck {
             ObjectClass::Truck
         } else {
@@ -186,7 +217,7 @@ impl Ctx {
         self.add(Solid {
             parts,
             pos,
-            yaw: if dir > 0.0 { h } else { h + PI },
+            yaw,
             speed,
             accel,
             tag,
@@ -532,26 +563,7 @@ fn follow_vehicle(ctx: &mut Ctx) -> Layout {
     let path = Path::arc(kappa);
     let (s0, s1) = arc_range(kappa);
     let truck = ctx.draw.chance(0.2);
-    let parts = objects::vehicle(&mut ctx.draw, truck, braking);
-    let len = length_of(&parts);
-    let centre_s = EGO_FRONT_M + gap + len / 2.0;
-    let (pos, h) = on_path(&path, centre_s, 0.0);
-    let tag = Some((
-        if truck {
-            ObjectClass::Truck
-        } else {
-            ObjectClass::Car
-        },
-        ctx.track(),
-    ));
-    ctx.add(Solid {
-        parts,
-        pos,
-        yaw: h,
-        speed: lead_speed,
-        accel,
-        tag,
-    });
+    ctx.lead_on(&path, gap, lead_speed, accel, truck, braking);
     ctx.fact("lead_gap_m", json!(round3(gap)));
     ctx.fact("lead_speed_mps", json!(round3(lead_speed)));
     ctx.fact("lead_accel_mps2", json!(round3(accel)));
@@ -610,24 +622,7 @@ fn passing(ctx: &mut Ctx) -> Layout {
     };
     let path = Path::straight();
     let truck = ctx.draw.chance(0.35);
-    let parts = objects::vehicle(&mut ctx.draw, truck, false);
-    let len = length_of(&parts);
-    let tag = Some((
-        if truck {
-            ObjectClass::Truck
-        } else {
-            ObjectClass::Car
-        },
-        ctx.track(),
-    ));
-    ctx.add(Solid {
-        parts,
-        pos: [EGO_FRONT_M + gap + len / 2.0, 0.0],
-        yaw: 0.0,
-        speed: lead_speed,
-        accel: 0.0,
-        tag,
-    });
+    ctx.lead_on(&path, gap, lead_speed, 0.0, truck, false);
     ctx.fact("lead_gap_m", json!(round3(gap)));
     ctx.fact("lead_speed_mps", json!(round3(lead_speed)));
     if road.oncoming > 0 {
