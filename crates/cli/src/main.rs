@@ -4,8 +4,11 @@
 //! stderr and prints its primary output on stdout. Exit codes: 0 success, 1 a gate failed
 //! (e.g. a scenario rejected under `--pi-star`), 2 error (the whole error chain is printed).
 
+mod bench_campaign;
+mod campaign_cmd;
 mod perturb_cmd;
 mod planner_cmd;
+mod serve_cmd;
 mod world_cmd;
 
 use std::io::Write as _;
@@ -60,6 +63,13 @@ enum Command {
     World(world_cmd::WorldArgs),
     /// The reference planner: evaluate it on generated clips, clean and perturbed.
     Planner(planner_cmd::PlannerArgs),
+    /// Campaigns: clips × conditions × seeds against a planner, in a crash-safe store.
+    Campaign(campaign_cmd::CampaignArgs),
+    /// Serve the reference planner over AlpaSim's egodriver gRPC contract or HTTP/JSON.
+    #[command(
+        after_help = "Examples:\n  fogline serve egodriver --addr 127.0.0.1:50051\n  fogline serve http --addr 127.0.0.1:8080"
+    )]
+    Serve(serve_cmd::ServeArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -169,8 +179,8 @@ struct DemoArgs {
     /// Output directory.
     #[arg(long, default_value = "fogline-demo")]
     out: PathBuf,
-    /// Clips in the corpus (the paper's corpus has 1,996).
-    #[arg(long, default_value_t = 1996)]
+    /// Clips in the synthetic corpus (the paper's corpus has 1,996: `--clips 1996`).
+    #[arg(long, default_value_t = 300)]
     clips: usize,
     /// Seed.
     #[arg(long, default_value_t = 0)]
@@ -220,6 +230,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Bench(a) => perturb_cmd::bench(a),
         Command::World(a) => world_cmd::world(a),
         Command::Planner(a) => planner_cmd::planner(a),
+        Command::Serve(a) => serve_cmd::serve(a),
+        Command::Campaign(a) => campaign_cmd::campaign(a),
     }
 }
 
@@ -459,23 +471,52 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
     if a.clips == 0 {
         bail!("--clips must be at least 1");
     }
+    let t = std::time::Instant::now();
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
-    log::info!(
-        "demo: the synthetic world, reference planner and campaign runner are not built yet; \
-         this run analyses a synthetic pairs corpus of {} clips (seed {})",
-        a.clips,
-        a.seed
+    // The campaign: the paper's eight conditions + clean on a synthetic corpus, the
+    // reference planner in-process.
+    let config_text = format!(
+        "# Written by `fogline demo`; rerun with `fogline campaign run`.\n\
+         [clips]\nsource = \"world\"\ncount = {}\nseed = {}\nmix = \"paper\"\n\
+         width = 576\nheight = 320\n\n[planner]\nkind = \"builtin\"\n",
+        a.clips, a.seed
     );
-    let sp = fogline_envelope::synthetic::SyntheticParams {
-        n_clips: a.clips,
-        seed: a.seed,
-    };
+    let config = fogline_campaign::CampaignConfig::from_toml(&config_text)?;
+    let config_path = a.out.join("campaign.toml");
+    write_atomic(&config_path, config_text.as_bytes())?;
+    // The demo owns its store: start it afresh.
+    let store = a.out.join("campaign.sqlite");
+    for suffix in ["", "-wal", "-shm"] {
+        let p = PathBuf::from(format!("{}{suffix}", store.display()));
+        if p.exists() {
+            std::fs::remove_file(&p).with_context(|| format!("cannot remove {}", p.display()))?;
+        }
+    }
+    log::info!(
+        "demo: {} synthetic clips × 9 conditions with the reference planner",
+        a.clips
+    );
+    let (_, summary) =
+        campaign_cmd::run_campaign(config, &store, fogline_campaign::Shard::ALL, false, false)?;
+    let runs = fogline_campaign::Store::open(&store)?.runs()?;
+    let exported = fogline_campaign::export::export(
+        &runs,
+        &a.out,
+        fogline_campaign::export::Formats {
+            csv: true,
+            parquet: true,
+        },
+        false,
+    )?;
+    {
+        let mut out = std::io::stdout().lock();
+        campaign_cmd::print_run(&mut out, &summary, &store)?;
+        campaign_cmd::print_export(&mut out, &exported)?;
+    }
     let pairs = a.out.join("pairs.csv");
-    write_atomic_with(&pairs, |w| fogline_envelope::synthetic::write_csv(&sp, w))?;
-    log::info!("wrote {}", pairs.display());
     let table = fogline_envelope::read_pairs(&pairs, &ReadOptions::default())?;
-    let t = std::time::Instant::now();
+    let t1 = std::time::Instant::now();
     let env = fogline_envelope::analyze(
         &table,
         &EnvelopeParams {
@@ -486,9 +527,15 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
     log::info!(
         "analysed {} pairs in {:.2} s",
         table.len(),
-        t.elapsed().as_secs_f64()
+        t1.elapsed().as_secs_f64()
     );
     let w = write_outputs(&env, &a.out)?;
     print_summary(&env, &w, false)?;
+    writeln!(
+        std::io::stdout().lock(),
+        "demo finished in {:.1} s; everything is in {}",
+        t.elapsed().as_secs_f64(),
+        a.out.display()
+    )?;
     Ok(ExitCode::SUCCESS)
 }

@@ -89,6 +89,12 @@ enum BenchCommand {
         after_help = "Examples:\n  fogline bench world                    # 1,996 clips at 576x320\n  fogline bench world --clips 200 --json"
     )]
     World(crate::planner_cmd::BenchWorldArgs),
+    /// The paper-size campaign with the built-in planner (s, runs/s), and the runner's
+    /// overhead per remote call (egodriver gRPC and HTTP on loopback, PNG and JPEG).
+    #[command(
+        after_help = "Examples:\n  fogline bench campaign                  # 1,996 clips × 9 conditions, then 200 calls per path\n  fogline bench campaign --clips 0 --calls 500"
+    )]
+    Campaign(crate::bench_campaign::BenchCampaignArgs),
 }
 
 #[derive(Args)]
@@ -670,6 +676,7 @@ pub fn bench(a: BenchArgs) -> Result<ExitCode> {
     match a.what {
         BenchCommand::Perturb(p) => bench_perturb(p),
         BenchCommand::World(w) => crate::planner_cmd::bench_world(w),
+        BenchCommand::Campaign(c) => crate::bench_campaign::bench_campaign(c),
     }
 }
 

@@ -16,9 +16,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use fogline_perturb::{Frame, FrameInput, FrameKey, FrameSource, Perturbation, Prepared};
+use fogline_perturb::{Frame, Perturbation, Prepared};
 use fogline_planner::ReferencePlanner;
-use fogline_types::clip::{CameraInput, Decision, PlannerInput, PlannerOutput, Trajectory};
+use fogline_types::clip::{Decision, PlannerOutput, Trajectory};
 use fogline_world::{Clip, ScenarioMix, WorldConfig, generate_clip};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -145,52 +145,14 @@ pub(crate) struct ClipEval {
     pub runs: Vec<RunRecord>,
 }
 
-/// The key of clip `index` for the perturbations' random streams.
-pub(crate) fn clip_key(index: usize) -> u64 {
-    index as u64
-}
-
-/// The frames the planner sees of every camera of `clip` under `cond`: each frame perturbed
-/// with the key `(clip, camera index, captured frame index)`, with the frame's depth map
-/// (Koschmieder fog) and, for deficit masks, its boxes; temporal faults decide which captured
-/// frame (or a black one) each time step delivers. The identity borrows the clip's frames.
+/// The frames the planner sees of every camera of `clip` under `cond` (see
+/// [`fogline_campaign::runner::condition_frames`]).
 pub(crate) fn condition_frames<'c>(
     clip: &'c Clip,
     key: u64,
     cond: &Prepared,
 ) -> Result<Vec<Vec<Cow<'c, Frame>>>> {
-    let p = cond.perturbation();
-    clip.cameras
-        .iter()
-        .enumerate()
-        .map(|(c, cam)| {
-            if p.is_identity() {
-                return Ok(cam.frames.iter().map(|f| Cow::Borrowed(&f.image)).collect());
-            }
-            cond.plan_clip(key, c as u64, cam.frames.len())
-                .into_iter()
-                .map(|source| match source {
-                    FrameSource::Captured(j) => {
-                        let f = &cam.frames[j];
-                        let input = FrameInput {
-                            frame: &f.image,
-                            key: FrameKey::new(key, c as u64, j as u64),
-                            depth: f.depth.as_ref(),
-                            boxes: if p.uses_boxes() { &f.boxes } else { &[] },
-                        };
-                        let out = cond.apply(&input).with_context(|| {
-                            format!("{}: {} frame {j}: {}", clip.id, cam.calib.id, p.name)
-                        })?;
-                        Ok(Cow::Owned(out.frame))
-                    }
-                    FrameSource::Black => Ok(Cow::Owned(
-                        Frame::filled(cam.calib.width, cam.calib.height, [0, 0, 0])
-                            .with_context(|| format!("{}: {}", clip.id, cam.calib.id))?,
-                    )),
-                })
-                .collect()
-        })
-        .collect()
+    fogline_campaign::runner::condition_frames(clip, key, cond).map_err(anyhow::Error::msg)
 }
 
 /// Runs the planner once on `frames` (one list per camera of `clip`) and the clip's ego
@@ -200,18 +162,7 @@ pub(crate) fn run_planner(
     clip: &Clip,
     frames: &[Vec<Cow<'_, Frame>>],
 ) -> RunRecord {
-    let input = PlannerInput {
-        cameras: clip
-            .cameras
-            .iter()
-            .zip(frames)
-            .map(|(cam, fs)| CameraInput {
-                calib: cam.calib,
-                frames: fs.iter().map(|f| f.data()).collect(),
-            })
-            .collect(),
-        ego_history: &clip.ego_history,
-    };
+    let input = fogline_campaign::runner::planner_input(clip, frames);
     let t = Instant::now();
     let out = planner.plan(&input);
     let plan_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -245,7 +196,7 @@ pub(crate) fn evaluate_clip(
     index: usize,
     conditions: &[Prepared],
 ) -> Result<ClipEval> {
-    let key = clip_key(index);
+    let key = fogline_campaign::runner::clip_key(index);
     let runs = conditions
         .iter()
         .map(|cond| {

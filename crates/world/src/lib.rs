@@ -21,4 +21,4 @@ pub use clip::{CameraClip, CameraFrame, Clip, SceneInfo};
 pub use config::{ScenarioMix, WorldConfig};
 pub use error::WorldError;
 pub use format::{list_clips, read_clip, write_clip};
-pub use generate::generate_clip;
+pub use generate::{generate_clip, generate_clip_cameras};

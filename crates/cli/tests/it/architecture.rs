@@ -13,6 +13,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
             &["fogline-types", "fogline-stats", "fogline-perturb"][..],
         ),
         ("fogline-planner", &["fogline-types"][..]),
+        ("fogline-remote", &["fogline-types"][..]),
         ("fogline-rco", &["fogline-types"][..]),
         ("fogline-envelope", &["fogline-types", "fogline-stats"][..]),
         (
@@ -29,9 +30,11 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
             "fogline-campaign",
             &[
                 "fogline-types",
+                "fogline-stats",
                 "fogline-world",
                 "fogline-perturb",
                 "fogline-planner",
+                "fogline-remote",
             ][..],
         ),
         (

@@ -3,7 +3,9 @@
 #![allow(clippy::unwrap_used)]
 
 mod architecture;
+mod campaign_cmd;
 mod envelope_cmd;
+mod interop;
 mod perturb_cmd;
 mod planner_cmd;
 mod reference_planner;

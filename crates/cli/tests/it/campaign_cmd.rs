@@ -1,0 +1,295 @@
+//! `fogline campaign`: init, run, status, export, shards and merge through the binary, and
+//! crash safety under SIGKILL.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+fn fogline(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn write_config(path: &Path, clips: usize, conditions: &str) {
+    write_config_at(path, clips, conditions, (192, 108));
+}
+
+fn write_config_at(path: &Path, clips: usize, conditions: &str, (width, height): (u32, u32)) {
+    std::fs::write(
+        path,
+        format!(
+            "[clips]\ncount = {clips}\nseed = 5\nwidth = {width}\nheight = {height}\n\
+             [conditions]\nnames = [{conditions}]\n[run]\nconcurrency = 2\n"
+        ),
+    )
+    .unwrap();
+}
+
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                std::fs::read(&p).unwrap(),
+            )
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn init_run_status_export_and_refusals() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("campaign.toml");
+    let o = fogline(&["campaign", "init", cfg.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(std::fs::read_to_string(&cfg).unwrap().contains("[planner]"));
+    let o = fogline(&["campaign", "init", cfg.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "init does not overwrite");
+
+    write_config(&cfg, 4, "\"noise_30\", \"dark\"");
+    let out = d.join("out");
+    let o = fogline(&[
+        "campaign",
+        "run",
+        cfg.to_str().unwrap(),
+        "--export",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(t.contains("ran 12 runs"), "{t}");
+    assert!(t.contains("pairs (seed 0): 8"), "{t}");
+    let store = d.join("campaign.sqlite");
+    assert!(store.is_file(), "the default store sits next to the config");
+    for f in ["runs.csv", "runs.parquet", "pairs.csv", "pairs.parquet"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // The pairs table is what `fogline envelope` reads.
+    let env = d.join("env");
+    let o = fogline(&[
+        "envelope",
+        out.join("pairs.parquet").to_str().unwrap(),
+        "--out",
+        env.to_str().unwrap(),
+        "--bootstrap",
+        "50",
+    ]);
+    assert!(
+        o.status.code() == Some(0) || o.status.code() == Some(1),
+        "{}",
+        text(&o)
+    );
+    assert!(env.join("envelope.json").is_file());
+
+    // Status.
+    let o = fogline(&["campaign", "status", store.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["planned"], 12);
+    assert_eq!(v["ok"], 12);
+    assert_eq!(v["pending"], 0);
+
+    // Running again without --resume is refused; with --resume there is nothing to do.
+    let o = fogline(&["campaign", "run", cfg.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("--resume"), "{}", text(&o));
+    let o = fogline(&["campaign", "run", cfg.to_str().unwrap(), "--resume"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("ran 0 runs"), "{}", text(&o));
+
+    // A changed configuration under the same store is refused, naming the change.
+    write_config(&cfg, 5, "\"noise_30\", \"dark\"");
+    let o = fogline(&["campaign", "run", cfg.to_str().unwrap(), "--resume"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("clips.count 4 → 5"), "{}", text(&o));
+
+    // A bad configuration names the field.
+    std::fs::write(
+        &cfg,
+        "[clips]\ncount = 4\n[planner]\nkind = \"egodriver\"\n",
+    )
+    .unwrap();
+    let o = fogline(&[
+        "campaign",
+        "run",
+        cfg.to_str().unwrap(),
+        "--store",
+        d.join("x.sqlite").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("planner.endpoint"), "{}", text(&o));
+    assert!(
+        !d.join("x.sqlite").exists(),
+        "no store is left behind for a bad config"
+    );
+
+    // Not a store.
+    let o = fogline(&["campaign", "status", cfg.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o).contains("not a fogline campaign store"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn shards_run_by_the_binary_merge_into_the_unsharded_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("c.toml");
+    write_config(&cfg, 5, "\"noise_50\"");
+    let c = cfg.to_str().unwrap();
+    let o = fogline(&[
+        "campaign",
+        "run",
+        c,
+        "--export",
+        d.join("whole").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mut shards = Vec::new();
+    for i in 0..2 {
+        let o = fogline(&[
+            "campaign",
+            "run",
+            c,
+            "--shard",
+            &format!("{i}/2"),
+            "--resume",
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        shards.push(d.join(format!("c.shard-{i}-of-2.sqlite")));
+        assert!(shards[i].is_file());
+    }
+    let merged = d.join("merged.sqlite");
+    let mut args = vec!["campaign", "merge", "--out", merged.to_str().unwrap()];
+    args.extend(shards.iter().map(|p| p.to_str().unwrap()));
+    let o = fogline(&args);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = fogline(&[
+        "campaign",
+        "export",
+        merged.to_str().unwrap(),
+        "--out",
+        d.join("m").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(files(&d.join("whole")), files(&d.join("m")));
+    let o = fogline(&["campaign", "run", c, "--shard", "2/2"]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+/// A deterministic stream of delays (SplitMix64), so the kill points are random yet
+/// reproducible.
+fn delays(seed: u64) -> impl Iterator<Item = u64> {
+    let mut s = seed;
+    std::iter::repeat_with(move || {
+        s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = s;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    })
+}
+
+#[test]
+fn a_campaign_killed_with_sigkill_again_and_again_resumes_to_the_uninterrupted_tables() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("crash.toml");
+    // Full-size frames, so that the campaign lasts a few seconds and the kills land
+    // throughout it.
+    write_config_at(&cfg, 24, "\"noise_30\", \"fog_07\", \"dark\"", (576, 320));
+    let c = cfg.to_str().unwrap();
+    // The reference: one uninterrupted run.
+    let whole = d.join("whole.sqlite");
+    let o = fogline(&[
+        "campaign",
+        "run",
+        c,
+        "--store",
+        whole.to_str().unwrap(),
+        "--concurrency",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+
+    let store = d.join("killed.sqlite");
+    let mut kills = 0;
+    let mut completed = false;
+    for (attempt, r) in delays(20_261_121).enumerate().take(400) {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_fogline"))
+            .args([
+                "-q",
+                "campaign",
+                "run",
+                c,
+                "--store",
+                store.to_str().unwrap(),
+                "--resume",
+                "--concurrency",
+                "1",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Kill points spread over process start, clip generation, planning and commits;
+        // after 30 kills the run is left to finish.
+        if kills < 30 {
+            std::thread::sleep(Duration::from_millis(10 + r % 140));
+            if child.try_wait().unwrap().is_none() {
+                child.kill().unwrap(); // SIGKILL
+                child.wait().unwrap();
+                kills += 1;
+                continue;
+            }
+        }
+        let o = child.wait_with_output().unwrap();
+        assert!(o.status.success(), "attempt {attempt}: {}", text(&o));
+        completed = true;
+        break;
+    }
+    assert!(completed, "the campaign never completed");
+    assert!(
+        kills >= 20,
+        "only {kills} kills landed before the campaign completed"
+    );
+
+    let o = fogline(&["campaign", "status", store.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["ok"], 24 * 4, "nothing lost, nothing duplicated");
+    assert_eq!(v["failed"], 0);
+    for (s, out) in [(&whole, "e1"), (&store, "e2")] {
+        let o = fogline(&[
+            "campaign",
+            "export",
+            s.to_str().unwrap(),
+            "--out",
+            d.join(out).to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    assert_eq!(
+        files(&d.join("e1")),
+        files(&d.join("e2")),
+        "identical tables after {kills} kills"
+    );
+}

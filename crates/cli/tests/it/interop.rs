@@ -1,0 +1,397 @@
+//! Interoperability with an independent implementation of AlpaSim's egodriver contract:
+//! the PyPI package carla-driver-interface 2.3.1 (install it with `scripts/python-peers.sh`).
+//!
+//! - A: `fogline serve egodriver` driven by carla-driver-interface's CARLA-free client loop
+//!   (`carla-driver-interface demo`).
+//! - B: carla-driver-interface's server (`serve --policy route_follower`) driven by
+//!   `fogline_remote::egodriver::Client` on a generated clip.
+
+use std::io::{BufRead as _, BufReader, Read as _};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use fogline_remote::egodriver::{Client, ClientOptions};
+use fogline_remote::{PlanRequest, Planner};
+use fogline_types::clip::{CameraInput, DT_S, HORIZON, PlannerInput};
+use fogline_world::{WorldConfig, generate_clip};
+
+/// A child process, killed and reaped when dropped (whatever the test did).
+pub struct ChildGuard {
+    child: Child,
+    what: String,
+}
+
+impl ChildGuard {
+    /// Starts `cmd`.
+    pub fn spawn(cmd: &mut Command, what: &str) -> Self {
+        let child = cmd
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {what}: {e}"));
+        Self {
+            child,
+            what: what.to_string(),
+        }
+    }
+
+    /// Panics if the process has already exited (with its status).
+    pub fn assert_running(&mut self) {
+        if let Some(status) = self.child.try_wait().unwrap() {
+            panic!("{} exited early: {status}", self.what);
+        }
+    }
+
+    /// Waits for the process to exit, at most `limit`; kills it and panics after that.
+    pub fn wait_for(&mut self, limit: Duration) -> ExitStatus {
+        let start = Instant::now();
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            if start.elapsed() > limit {
+                let _ = self.child.kill();
+                panic!("{} did not finish within {limit:?}", self.what);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The Python with carla-driver-interface: `FOGLINE_TEST_PYTHON`, else
+/// `<workspace>/target/pyenv/bin/python`. Fails (never skips) when it is missing.
+pub fn python() -> PathBuf {
+    let advice = "run scripts/python-peers.sh (it installs carla-driver-interface 2.3.1 into \
+                  target/pyenv), or point FOGLINE_TEST_PYTHON at a Python that has it";
+    let python = std::env::var_os("FOGLINE_TEST_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace().join("target/pyenv/bin/python"));
+    assert!(
+        python.exists(),
+        "the interoperability peer's Python {} does not exist: {advice}",
+        python.display()
+    );
+    let probe = Command::new(&python)
+        .args(["-c", "import carla_driver_interface"])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {}: {e}; {advice}", python.display()));
+    assert!(
+        probe.status.success(),
+        "{} cannot import carla_driver_interface ({}): {advice}",
+        python.display(),
+        String::from_utf8_lossy(&probe.stderr).trim()
+    );
+    python
+}
+
+/// A loopback port nobody listens on (yet).
+pub fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Waits until something accepts connections on `addr`.
+pub fn wait_until_listening(addr: SocketAddr, server: &mut ChildGuard, limit: Duration) {
+    let start = Instant::now();
+    while TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_err() {
+        server.assert_running();
+        assert!(
+            start.elapsed() < limit,
+            "nothing listens on {addr} after {limit:?}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// Starts `fogline serve PROTOCOL` on a free port and returns it with its address (read
+/// from its `listening on …` line).
+pub fn fogline_serve(protocol: &str) -> (ChildGuard, SocketAddr) {
+    let what = format!("fogline serve {protocol}");
+    let mut server = ChildGuard::spawn(
+        Command::new(env!("CARGO_BIN_EXE_fogline"))
+            .args(["serve", protocol, "--addr", "127.0.0.1:0"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit()),
+        &what,
+    );
+    let stdout = server.child.stdout.take().unwrap();
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = BufReader::new(stdout).read_line(&mut line);
+        let _ = tx.send(line);
+    });
+    let line = rx
+        .recv_timeout(Duration::from_secs(60))
+        .unwrap_or_else(|_| panic!("{what} printed no `listening on` line within 60 s"));
+    let suffix = format!(" ({protocol})\n");
+    let addr = line
+        .strip_prefix("listening on ")
+        .and_then(|rest| rest.strip_suffix(suffix.as_str()))
+        .unwrap_or_else(|| panic!("unexpected first line {line:?}"));
+    (server, addr.parse().unwrap())
+}
+
+#[test]
+fn carla_driver_interface_demo_drives_fogline_serve() {
+    let python = python();
+    let (mut server, addr) = fogline_serve("egodriver");
+    let mut demo = ChildGuard::spawn(
+        Command::new(&python)
+            .args(["-m", "carla_driver_interface.cli", "demo", "--driver"])
+            .arg(addr.to_string())
+            .args(["--steps", "30"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
+        "carla-driver-interface demo",
+    );
+    let mut out = String::new();
+    let mut err = String::new();
+    let mut stdout = demo.child.stdout.take().unwrap();
+    let mut stderr = demo.child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut e = String::new();
+        let _ = stderr.read_to_string(&mut e);
+        e
+    });
+    stdout.read_to_string(&mut out).unwrap();
+    let status = demo.wait_for(Duration::from_secs(180));
+    err.push_str(&reader.join().unwrap());
+    assert!(status.success(), "demo failed ({status}):\n{out}\n{err}");
+    let steps = out
+        .lines()
+        .find(|l| l.starts_with("steps"))
+        .unwrap_or_else(|| panic!("no steps line:\n{out}"));
+    assert_eq!(steps.split(':').nth(1).map(str::trim), Some("30"), "{out}");
+    server.assert_running();
+}
+
+#[test]
+fn fogline_client_drives_the_carla_driver_interface_server() {
+    let python = python();
+    let port = free_port();
+    let addr: SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
+    let mut server = ChildGuard::spawn(
+        Command::new(&python)
+            .args([
+                "-m",
+                "carla_driver_interface.cli",
+                "--log-level",
+                "WARNING",
+                "serve",
+            ])
+            .args(["--host", "127.0.0.1", "--port"])
+            .arg(port.to_string())
+            .args([
+                "--policy",
+                "route_follower",
+                "--policy-arg",
+                "horizon_s=6.4",
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit()),
+        "carla-driver-interface serve",
+    );
+    wait_until_listening(addr, &mut server, Duration::from_secs(60));
+
+    let cfg = WorldConfig {
+        width: 288,
+        height: 160,
+        depth: false,
+        ..WorldConfig::default()
+    };
+    let clip = generate_clip(&cfg, 3).unwrap();
+    let input = PlannerInput {
+        cameras: clip
+            .cameras
+            .iter()
+            .map(|c| CameraInput {
+                calib: c.calib,
+                frames: c.frames.iter().map(|f| f.image.data()).collect(),
+            })
+            .collect(),
+        ego_history: &clip.ego_history,
+    };
+    let client = Client::new(ClientOptions {
+        endpoint: addr.to_string(),
+        timeout: Duration::from_secs(30),
+        ..ClientOptions::default()
+    })
+    .unwrap();
+    let request = PlanRequest {
+        scene_id: &clip.id,
+        seed: 11,
+        input,
+    };
+    let out = client.plan(&request).unwrap();
+    out.trajectory.validate().unwrap();
+    assert_eq!(out.trajectory.xy.len(), HORIZON);
+    // With no route the policy holds its heading and brakes to a stop at 4 m/s²: a
+    // straight path along x, each step `speed · 0.1 s` with the speed falling by 0.4 m/s.
+    let v0 = clip.ego_history.last().unwrap().speed_mps;
+    assert!(v0 > 1.0, "clip 3 is a moving one (v0 = {v0})");
+    let mut v = v0;
+    let mut x = 0.0;
+    for (k, p) in out.trajectory.xy.iter().enumerate() {
+        v = (v - 4.0 * DT_S).max(0.0);
+        x += v * DT_S;
+        assert!(
+            (p[0] - x).abs() < 0.02,
+            "waypoint {k}: {p:?}, expected x = {x} (v0 = {v0})"
+        );
+        assert!(p[1].abs() < 0.02, "waypoint {k}: {p:?}");
+    }
+    // Its debug payload is a protobuf, not text: no explanation.
+    assert_eq!(out.explanation, "");
+    // Sessions are independent: the same request gives the same plan.
+    let again = client.plan(&request).unwrap();
+    assert_eq!(again.trajectory, out.trajectory);
+    server.assert_running();
+}
+
+#[test]
+fn fogline_serve_answers_as_the_in_process_planner_does() {
+    use fogline_campaign::BuiltinPlanner;
+    let cfg = WorldConfig {
+        width: 288,
+        height: 160,
+        depth: false,
+        ..WorldConfig::default()
+    };
+    let clips: Vec<_> = [0, 7, 40]
+        .iter()
+        .map(|&i| generate_clip(&cfg, i).unwrap())
+        .collect();
+    let local = BuiltinPlanner::new();
+    for protocol in ["egodriver", "http"] {
+        let (mut server, addr) = fogline_serve(protocol);
+        let timeout = Duration::from_secs(30);
+        let client: Box<dyn Planner> = match protocol {
+            "egodriver" => Box::new(
+                Client::new(ClientOptions {
+                    endpoint: addr.to_string(),
+                    timeout,
+                    ..ClientOptions::default()
+                })
+                .unwrap(),
+            ),
+            _ => Box::new(
+                fogline_remote::http::Client::new(fogline_remote::http::ClientOptions {
+                    url: format!("http://{addr}"),
+                    timeout,
+                    ..fogline_remote::http::ClientOptions::default()
+                })
+                .unwrap(),
+            ),
+        };
+        for clip in &clips {
+            let input = PlannerInput {
+                cameras: clip
+                    .cameras
+                    .iter()
+                    .map(|c| CameraInput {
+                        calib: c.calib,
+                        frames: c.frames.iter().map(|f| f.image.data()).collect(),
+                    })
+                    .collect(),
+                ego_history: &clip.ego_history,
+            };
+            let request = PlanRequest {
+                scene_id: &clip.id,
+                seed: 3,
+                input,
+            };
+            let expected = local.plan(&request).unwrap();
+            let got = client.plan(&request).unwrap();
+            assert_eq!(got.decision, expected.decision, "{protocol} {}", clip.id);
+            assert_eq!(
+                got.explanation, expected.explanation,
+                "{protocol} {}",
+                clip.id
+            );
+            // gRPC carries single-precision floats.
+            let ade = got.trajectory.ade(&expected.trajectory);
+            assert!(ade < 1e-3, "{protocol} {}: ADE {ade} m", clip.id);
+        }
+        server.assert_running();
+    }
+}
+
+#[test]
+fn fogline_campaign_drives_the_carla_driver_interface_server() {
+    let python = python();
+    let port = free_port();
+    let addr: SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
+    let mut server = ChildGuard::spawn(
+        Command::new(&python)
+            .args([
+                "-m",
+                "carla_driver_interface.cli",
+                "--log-level",
+                "WARNING",
+                "serve",
+            ])
+            .args(["--host", "127.0.0.1", "--port"])
+            .arg(port.to_string())
+            .args([
+                "--policy",
+                "route_follower",
+                "--policy-arg",
+                "horizon_s=6.4",
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit()),
+        "carla-driver-interface serve",
+    );
+    wait_until_listening(addr, &mut server, Duration::from_secs(60));
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("remote.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[clips]\ncount = 4\nseed = 2\nwidth = 288\nheight = 160\n\
+             [conditions]\nnames = [\"noise_30\", \"fog_07\"]\n\
+             [planner]\nkind = \"egodriver\"\nendpoint = \"{addr}\"\nimage_format = \"jpeg\"\n\
+             [run]\nconcurrency = 3\ntimeout_s = 30\n"
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args(["campaign", "run"])
+        .arg(&cfg)
+        .arg("--export")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("ran 12 runs"), "{text}");
+    assert!(text.contains("12 ok, 0 failed"), "{text}");
+    assert!(text.contains("pairs (seed 0): 8"), "{text}");
+    let pairs = std::fs::read_to_string(out.join("pairs.csv")).unwrap();
+    assert_eq!(pairs.lines().count(), 9, "{pairs}");
+}

@@ -1,0 +1,672 @@
+//! The egodriver client: a remote policy as a [`Planner`].
+
+use std::future::Future;
+use std::time::Duration;
+
+use fogline_types::clip::{CameraCalib, DT_S, Decision, HORIZON, PlannerOutput, Trajectory};
+use tokio::runtime::Runtime;
+use tonic::metadata::MetadataValue;
+use tonic::transport::{Channel, Endpoint};
+use tonic::{Code, Status};
+
+use super::wire::common::{DynamicState, Pose, PoseAtTime, Quat, Vec3};
+use super::wire::egodriver::drive_session_request::rollout_spec::VehicleDefinition;
+use super::wire::egodriver::drive_session_request::{DebugInfo, RolloutSpec};
+use super::wire::egodriver::egodriver_service_client::EgodriverServiceClient;
+use super::wire::egodriver::rollout_camera_image::CameraImage;
+use super::wire::egodriver::{
+    DriveRequest, DriveResponse, DriveSessionCloseRequest, DriveSessionRequest, RolloutCameraImage,
+    RolloutEgoTrajectory,
+};
+use super::wire::nre::grpc::protos::sensorsim::available_cameras_return::AvailableCamera;
+use super::wire::nre::grpc::protos::sensorsim::camera_spec::CameraParam;
+use super::wire::nre::grpc::protos::sensorsim::{
+    CameraSpec, OpenCvPinholeCameraParam, ShutterType,
+};
+use super::{
+    CONTRACT_METADATA_KEY, CONTRACT_REVISION, DEFAULT_EXPLANATION_FIELDS, MAX_MESSAGE_BYTES, T0_US,
+    wire_time,
+};
+use crate::geom::{CameraFrame, camera_rotation, quat_from_matrix, quat_from_yaw};
+use crate::{FailureKind, ImageFormat, PlanFailure, PlanRequest, Planner, codec};
+
+/// Horizon a plan must cover, s (`HORIZON · DT_S`).
+const HORIZON_S: f64 = HORIZON as f64 * DT_S;
+/// How much short of the horizon an answer may end (rounding of µs timestamps).
+const COVER_TOLERANCE_S: f64 = 0.002;
+
+/// Settings of an egodriver [`Client`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClientOptions {
+    /// The policy's address, `host:port` (an `http://` prefix is accepted; TLS is not
+    /// supported).
+    pub endpoint: String,
+    /// The time limit of each RPC (and of connecting).
+    pub timeout: Duration,
+    /// How frames are encoded.
+    pub image_format: ImageFormat,
+    /// Keys of a JSON `unstructured_debug_info` that hold the explanation, in order of
+    /// preference.
+    pub explanation_fields: Vec<String>,
+}
+
+impl Default for ClientOptions {
+    fn default() -> Self {
+        Self {
+            endpoint: "127.0.0.1:50051".into(),
+            timeout: Duration::from_secs(30),
+            image_format: ImageFormat::Png,
+            explanation_fields: DEFAULT_EXPLANATION_FIELDS
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+        }
+    }
+}
+
+/// A driving policy behind AlpaSim's egodriver contract, as a [`Planner`].
+///
+/// Synchronous: each call blocks on an internal tokio runtime, and any number of threads
+/// may call at once (their calls share one HTTP/2 connection). The connection is made on
+/// first use and remade after a failure. Do not call from inside an async runtime.
+pub struct Client {
+    opts: ClientOptions,
+    channel: Channel,
+    // Declared last: dropped after the channel, whose tasks live on it.
+    runtime: Runtime,
+}
+
+impl std::fmt::Debug for Client {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("egodriver::Client")
+            .field("opts", &self.opts)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Client {
+    /// A client for `opts.endpoint`. It does not connect yet: an unreachable endpoint shows
+    /// up as [`FailureKind::Unavailable`] on the first [`Planner::plan`].
+    pub fn new(opts: ClientOptions) -> Result<Self, PlanFailure> {
+        let input = |m: String| PlanFailure::new(FailureKind::Input, m);
+        let raw = opts.endpoint.trim();
+        let uri = if let Some(rest) = raw.strip_prefix("http://") {
+            format!("http://{rest}")
+        } else if raw.contains("://") {
+            return Err(input(format!(
+                "egodriver endpoint {raw:?}: only plain host:port (or http://host:port) is supported"
+            )));
+        } else {
+            format!("http://{raw}")
+        };
+        if opts.timeout.is_zero() {
+            return Err(input(
+                "egodriver client: the timeout must be positive".into(),
+            ));
+        }
+        let endpoint = Endpoint::from_shared(uri)
+            .map_err(|e| input(format!("egodriver endpoint {raw:?}: {e}")))?
+            .connect_timeout(opts.timeout)
+            .tcp_nodelay(true);
+        let runtime = crate::serving::client_runtime("fogline-egodriver-client")
+            .map_err(|e| input(format!("cannot start the egodriver client runtime: {e}")))?;
+        let channel = {
+            let _guard = runtime.enter();
+            endpoint.connect_lazy()
+        };
+        Ok(Self {
+            opts,
+            channel,
+            runtime,
+        })
+    }
+
+    /// The client's settings.
+    pub fn options(&self) -> &ClientOptions {
+        &self.opts
+    }
+
+    async fn session(&self, session: Session) -> Result<PlannerOutput, PlanFailure> {
+        let mut rpc = EgodriverServiceClient::new(self.channel.clone())
+            .max_decoding_message_size(MAX_MESSAGE_BYTES)
+            .max_encoding_message_size(MAX_MESSAGE_BYTES);
+        let uuid = session.start.session_uuid.clone();
+        let timeout = self.opts.timeout;
+        let mut start = tonic::Request::new(session.start);
+        start.metadata_mut().insert(
+            CONTRACT_METADATA_KEY,
+            MetadataValue::from(CONTRACT_REVISION),
+        );
+        start.set_timeout(timeout);
+        let started = call("start_session", timeout, rpc.start_session(start)).await;
+        let outcome = match started {
+            // Nothing was opened on an endpoint that cannot be reached.
+            Err(e) if e.kind == FailureKind::Unavailable => return Err(e),
+            Err(e) => Err(e),
+            Ok(_) => {
+                self.observe_and_drive(&mut rpc, session.images, session.ego, session.drive)
+                    .await
+            }
+        };
+        // Always, best effort: the answer (or the first error) is what the caller gets.
+        let close = DriveSessionCloseRequest {
+            session_uuid: uuid.clone(),
+        };
+        let limit = timeout.min(Duration::from_secs(5));
+        let closed = call(
+            "close_session",
+            limit,
+            rpc.close_session(with_timeout(close, limit)),
+        )
+        .await;
+        if let Err(e) = closed {
+            log::debug!("egodriver session {uuid}: {e}");
+        }
+        outcome
+    }
+
+    async fn observe_and_drive(
+        &self,
+        rpc: &mut EgodriverServiceClient<Channel>,
+        images: Vec<RolloutCameraImage>,
+        ego: RolloutEgoTrajectory,
+        drive: DriveRequest,
+    ) -> Result<PlannerOutput, PlanFailure> {
+        let timeout = self.opts.timeout;
+        for image in images {
+            call(
+                "submit_image_observation",
+                timeout,
+                rpc.submit_image_observation(with_timeout(image, timeout)),
+            )
+            .await?;
+        }
+        call(
+            "submit_egomotion_observation",
+            timeout,
+            rpc.submit_egomotion_observation(with_timeout(ego, timeout)),
+        )
+        .await?;
+        let answer = call("drive", timeout, rpc.drive(with_timeout(drive, timeout))).await?;
+        read_answer(&answer, &self.opts.explanation_fields)
+    }
+}
+
+impl Planner for Client {
+    fn describe(&self) -> String {
+        format!("egodriver at {}", self.opts.endpoint)
+    }
+
+    fn plan(&self, request: &PlanRequest<'_>) -> Result<PlannerOutput, PlanFailure> {
+        let session = build_session(request, self.opts.image_format)?;
+        self.runtime.block_on(self.session(session))
+    }
+}
+
+/// The messages of one session, built (and the frames encoded) before any RPC.
+struct Session {
+    start: DriveSessionRequest,
+    images: Vec<RolloutCameraImage>,
+    ego: RolloutEgoTrajectory,
+    drive: DriveRequest,
+}
+
+fn input_failure(m: String) -> PlanFailure {
+    PlanFailure::new(FailureKind::Input, m)
+}
+
+fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Session, PlanFailure> {
+    let input = &request.input;
+    if input.cameras.is_empty() {
+        return Err(input_failure("the request has no camera".into()));
+    }
+    if input.ego_history.is_empty() {
+        return Err(input_failure("the request has no ego history".into()));
+    }
+    let uuid = codec::session_uuid();
+    let mut cameras = Vec::with_capacity(input.cameras.len());
+    // (calibration, frame index, frame count, pixels), camera by camera, oldest first.
+    let mut jobs = Vec::new();
+    for cam in &input.cameras {
+        let c = &cam.calib;
+        c.validate().map_err(input_failure)?;
+        cameras.push(declare(c));
+        let n = cam.frames.len();
+        jobs.extend(cam.frames.iter().enumerate().map(|(j, f)| (c, j, n, *f)));
+    }
+    let bytes = jobs.iter().map(|job| job.3.len()).sum();
+    let images = codec::par_map(&jobs, bytes, |&(c, j, n, frame)| {
+        let bytes = codec::encode(frame, c.width, c.height, format)
+            .map_err(|e| input_failure(format!("{} frame {j}: {e}", c.id)))?;
+        let t_us = wire_time(-DT_S * (n - 1 - j) as f64);
+        Ok(RolloutCameraImage {
+            session_uuid: uuid.clone(),
+            camera_image: Some(CameraImage {
+                frame_start_us: t_us,
+                frame_end_us: t_us,
+                image_bytes: bytes,
+                logical_id: c.id.name().to_string(),
+            }),
+        })
+    })
+    .into_iter()
+    .collect::<Result<Vec<_>, PlanFailure>>()?;
+    let mut poses = Vec::with_capacity(input.ego_history.len());
+    let mut states = Vec::with_capacity(input.ego_history.len());
+    for (k, p) in input.ego_history.iter().enumerate() {
+        let vals = [p.t_s, p.x_m, p.y_m, p.yaw_rad, p.speed_mps];
+        if vals.iter().any(|v| !v.is_finite()) {
+            return Err(input_failure(format!("ego history pose {k} is not finite")));
+        }
+        if p.t_s > 1e-9 {
+            return Err(input_failure(format!(
+                "ego history pose {k} is after t0 (t = {} s)",
+                p.t_s
+            )));
+        }
+        poses.push(PoseAtTime {
+            pose: Some(pose(p.x_m, p.y_m, 0.0, quat_from_yaw(p.yaw_rad))),
+            timestamp_us: wire_time(p.t_s),
+        });
+        states.push(DynamicState {
+            linear_velocity: Some(Vec3 {
+                x: p.speed_mps as f32,
+                y: 0.0,
+                z: 0.0,
+            }),
+            ..Default::default()
+        });
+    }
+    let start = DriveSessionRequest {
+        session_uuid: uuid.clone(),
+        random_seed: request.seed,
+        debug_info: Some(DebugInfo {
+            scene_id: request.scene_id.to_string(),
+        }),
+        rollout_spec: Some(RolloutSpec {
+            vehicle: Some(VehicleDefinition {
+                available_cameras: cameras,
+            }),
+        }),
+    };
+    let ego = RolloutEgoTrajectory {
+        session_uuid: uuid.clone(),
+        trajectory: Some(super::wire::common::Trajectory { poses }),
+        dynamic_states: states,
+    };
+    let drive = DriveRequest {
+        session_uuid: uuid,
+        time_now_us: T0_US,
+        time_query_us: wire_time(HORIZON_S),
+        renderer_data: Vec::new(),
+    };
+    Ok(Session {
+        start,
+        images,
+        ego,
+        drive,
+    })
+}
+
+fn pose(x: f64, y: f64, z: f64, q: [f64; 4]) -> Pose {
+    Pose {
+        vec: Some(Vec3 {
+            x: x as f32,
+            y: y as f32,
+            z: z as f32,
+        }),
+        quat: Some(Quat {
+            w: q[0] as f32,
+            x: q[1] as f32,
+            y: q[2] as f32,
+            z: q[3] as f32,
+        }),
+    }
+}
+
+/// A camera as `start_session` declares it: pinhole intrinsics, resolution, the
+/// PhysicalAI name, and the optical frame's pose in the rig (revision 2).
+fn declare(c: &CameraCalib) -> AvailableCamera {
+    let name = c.id.name().to_string();
+    let q = quat_from_matrix(camera_rotation(c, CameraFrame::Optical));
+    AvailableCamera {
+        intrinsics: Some(CameraSpec {
+            camera_param: Some(CameraParam::OpencvPinholeParam(OpenCvPinholeCameraParam {
+                principal_point_x: c.cx,
+                principal_point_y: c.cy,
+                focal_length_x: c.fx,
+                focal_length_y: c.fy,
+                ..Default::default()
+            })),
+            logical_id: name.clone(),
+            resolution_h: c.height,
+            resolution_w: c.width,
+            shutter_type: ShutterType::Global as i32,
+            ..Default::default()
+        }),
+        rig_to_camera: Some(pose(c.x_m, c.y_m, c.z_m, q)),
+        logical_id: name,
+    }
+}
+
+fn with_timeout<T>(message: T, timeout: Duration) -> tonic::Request<T> {
+    let mut r = tonic::Request::new(message);
+    r.set_timeout(timeout);
+    r
+}
+
+/// Runs one RPC under `timeout` and maps its failure.
+async fn call<T>(
+    rpc: &'static str,
+    timeout: Duration,
+    fut: impl Future<Output = Result<tonic::Response<T>, Status>>,
+) -> Result<T, PlanFailure> {
+    match tokio::time::timeout(timeout, fut).await {
+        Err(_) => Err(PlanFailure::new(
+            FailureKind::Timeout,
+            format!(
+                "egodriver {rpc}: no answer within {:.3} s",
+                timeout.as_secs_f64()
+            ),
+        )),
+        Ok(Err(status)) => {
+            let mut failure = status_failure(rpc, &status);
+            if timed_out(&status) {
+                failure.message = format!(
+                    "egodriver {rpc}: no answer within {:.3} s",
+                    timeout.as_secs_f64()
+                );
+            }
+            Err(failure)
+        }
+        Ok(Ok(r)) => Ok(r.into_inner()),
+    }
+}
+
+/// The status message and, when tonic kept one, its deepest cause (transport errors).
+fn detail(status: &Status) -> String {
+    let mut out = status.message().to_string();
+    let mut deepest = None;
+    let mut source = std::error::Error::source(status);
+    while let Some(e) = source {
+        deepest = Some(e.to_string());
+        source = e.source();
+    }
+    if let Some(cause) = deepest
+        && !cause.is_empty()
+        && !out.contains(&cause)
+    {
+        out.push_str(": ");
+        out.push_str(&cause);
+    }
+    out
+}
+
+/// Maps a gRPC status to a failure kind (see `docs/remote.md`).
+pub(crate) fn status_failure(rpc: &str, status: &Status) -> PlanFailure {
+    let detail = detail(status);
+    let (kind, text) = match status.code() {
+        _ if timed_out(status) => (
+            FailureKind::Timeout,
+            format!("egodriver {rpc}: no answer within the time limit: {detail}"),
+        ),
+        Code::DeadlineExceeded => (
+            FailureKind::Timeout,
+            format!("egodriver {rpc}: deadline exceeded: {detail}"),
+        ),
+        Code::Unavailable | Code::Cancelled => (
+            FailureKind::Unavailable,
+            format!("egodriver {rpc}: endpoint unavailable: {detail}"),
+        ),
+        Code::Internal | Code::Unknown if is_decode_failure(&detail) => (
+            FailureKind::InvalidAnswer,
+            format!("egodriver {rpc}: the answer cannot be decoded: {detail}"),
+        ),
+        Code::Internal | Code::Unknown if is_transport_failure(status, &detail) => (
+            FailureKind::Unavailable,
+            format!("egodriver {rpc}: the connection failed: {detail}"),
+        ),
+        code => (
+            FailureKind::Remote,
+            format!("egodriver {rpc} failed with status {code:?}: {detail}"),
+        ),
+    };
+    PlanFailure::new(kind, text)
+}
+
+/// Whether the client's own deadline (the `grpc-timeout` it sent) expired.
+fn timed_out(status: &Status) -> bool {
+    // tonic turns its expired deadline into a plain `Cancelled` status.
+    if status.code() == Code::Cancelled && status.message().contains("Timeout expired") {
+        return true;
+    }
+    let mut source = std::error::Error::source(status);
+    while let Some(e) = source {
+        if e.is::<tonic::TimeoutExpired>() {
+            return true;
+        }
+        source = e.source();
+    }
+    false
+}
+
+fn is_decode_failure(detail: &str) -> bool {
+    let d = detail.to_ascii_lowercase();
+    d.contains("failed to decode")
+        || d.contains("protocol error")
+        || d.contains("invalid compression flag")
+        || d.contains("invalid content type")
+        || d.contains("malformed")
+        || d.contains("frame with invalid size")
+}
+
+fn is_transport_failure(status: &Status, detail: &str) -> bool {
+    if std::error::Error::source(status).is_some() {
+        return true;
+    }
+    let d = detail.to_ascii_lowercase();
+    d.contains("connection") || d.contains("broken pipe") || d.contains("transport error")
+}
+
+fn invalid(m: String) -> PlanFailure {
+    PlanFailure::new(FailureKind::InvalidAnswer, m)
+}
+
+/// Reads a `drive` answer: resamples the trajectory (local frame = rig frame at `t0`)
+/// onto the 64 waypoint times, and extracts the explanation.
+pub(crate) fn read_answer(
+    answer: &DriveResponse,
+    explanation_fields: &[String],
+) -> Result<PlannerOutput, PlanFailure> {
+    let poses = answer
+        .trajectory
+        .as_ref()
+        .map(|t| t.poses.as_slice())
+        .unwrap_or_default();
+    if poses.is_empty() {
+        let why = if answer.terminate_session {
+            " (the policy asked to end the session)"
+        } else {
+            ""
+        };
+        return Err(invalid(format!(
+            "egodriver drive: the trajectory is empty{why}"
+        )));
+    }
+    let mut samples = Vec::with_capacity(poses.len() + 1);
+    for (k, p) in poses.iter().enumerate() {
+        let Some(v) = p.pose.as_ref().and_then(|p| p.vec.as_ref()) else {
+            return Err(invalid(format!(
+                "egodriver drive: trajectory pose {k} has no position"
+            )));
+        };
+        let (x, y) = (f64::from(v.x), f64::from(v.y));
+        if !(x.is_finite() && y.is_finite()) {
+            return Err(invalid(format!(
+                "egodriver drive: trajectory pose {k} is not finite ({x}, {y})"
+            )));
+        }
+        let t = (p.timestamp_us as i128 - T0_US as i128) as f64 / 1e6;
+        samples.push((t, x, y));
+    }
+    samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+    samples.dedup_by(|later, earlier| later.0 == earlier.0);
+    // The plan starts where the ego is at t0: the origin of the local frame.
+    if samples[0].0 > 0.0 {
+        samples.insert(0, (0.0, 0.0, 0.0));
+    }
+    let Some(&(end, _, _)) = samples.last() else {
+        return Err(invalid("egodriver drive: the trajectory is empty".into()));
+    };
+    if end < HORIZON_S - COVER_TOLERANCE_S {
+        return Err(invalid(format!(
+            "egodriver drive: the trajectory covers only {:.2} s of the {HORIZON_S:.1} s horizon",
+            end.max(0.0)
+        )));
+    }
+    let trajectory = Trajectory {
+        xy: (1..=HORIZON)
+            .map(|k| interpolate(&samples, k as f64 * DT_S))
+            .collect(),
+    };
+    trajectory
+        .validate()
+        .map_err(|e| invalid(format!("egodriver drive: {e}")))?;
+    let debug = answer
+        .debug_info
+        .as_ref()
+        .map(|d| d.unstructured_debug_info.as_slice())
+        .unwrap_or_default();
+    let (explanation, decision) = explanation(debug, explanation_fields);
+    Ok(PlannerOutput {
+        trajectory,
+        explanation,
+        decision,
+    })
+}
+
+/// Linear interpolation of `(t, x, y)` samples (sorted by `t`) at `t`; clamps at the ends.
+fn interpolate(samples: &[(f64, f64, f64)], t: f64) -> [f64; 2] {
+    let i = samples.partition_point(|s| s.0 < t);
+    if i == 0 {
+        return [samples[0].1, samples[0].2];
+    }
+    if i == samples.len() {
+        let s = samples[samples.len() - 1];
+        return [s.1, s.2];
+    }
+    let (a, b) = (samples[i - 1], samples[i]);
+    let w = (t - a.0) / (b.0 - a.0);
+    [a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2)]
+}
+
+/// The explanation (and a decision, when one is named) in `unstructured_debug_info`:
+/// a JSON object gives its first string field among `fields`; other UTF-8 text is the
+/// explanation itself; anything else (a protobuf, a pickle) gives none.
+pub(crate) fn explanation(bytes: &[u8], fields: &[String]) -> (String, Option<Decision>) {
+    let Ok(text) = std::str::from_utf8(bytes) else {
+        return (String::new(), None);
+    };
+    let text = text.trim();
+    if text.starts_with('{')
+        && let Ok(serde_json::Value::Object(obj)) = serde_json::from_str(text)
+    {
+        let found = fields
+            .iter()
+            .find_map(|f| obj.get(f).and_then(|v| v.as_str()))
+            .unwrap_or_default()
+            .trim()
+            .to_string();
+        let decision = obj
+            .get("decision")
+            .and_then(|v| v.as_str())
+            .and_then(Decision::parse);
+        return (found, decision);
+    }
+    // Binary payloads are often valid UTF-8 by chance; text has no control characters.
+    if text
+        .chars()
+        .any(|c| c.is_control() && !matches!(c, '\n' | '\r' | '\t'))
+    {
+        return (String::new(), None);
+    }
+    (text.to_string(), None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::egodriver::wire::common::Trajectory as WireTrajectory;
+    use crate::egodriver::wire::egodriver::drive_response::DebugInfo as AnswerDebug;
+
+    fn fields() -> Vec<String> {
+        DEFAULT_EXPLANATION_FIELDS
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+
+    fn answer(points: &[(f64, f64, f64)], debug: &[u8]) -> DriveResponse {
+        DriveResponse {
+            trajectory: Some(WireTrajectory {
+                poses: points
+                    .iter()
+                    .map(|&(t, x, y)| PoseAtTime {
+                        pose: Some(pose(x, y, 0.0, [1.0, 0.0, 0.0, 0.0])),
+                        timestamp_us: wire_time(t),
+                    })
+                    .collect(),
+            }),
+            debug_info: Some(AnswerDebug {
+                unstructured_debug_info: debug.to_vec(),
+                sampled_trajectories: vec![],
+            }),
+            terminate_session: false,
+        }
+    }
+
+    #[test]
+    fn resamples_a_coarse_trajectory_by_time() {
+        // 0.2 s steps at 5 m/s, starting at the anchor.
+        let pts: Vec<_> = (0..=32).map(|k| (k as f64 * 0.2, k as f64, 0.0)).collect();
+        let out = read_answer(&answer(&pts, b"Keep the lane."), &fields()).expect("valid");
+        assert_eq!(out.trajectory.xy.len(), HORIZON);
+        assert!((out.trajectory.xy[0][0] - 0.5).abs() < 1e-4);
+        assert!((out.trajectory.xy[63][0] - 32.0).abs() < 1e-4);
+        assert_eq!(out.explanation, "Keep the lane.");
+    }
+
+    #[test]
+    fn short_empty_and_nan_answers_are_invalid() {
+        let short: Vec<_> = (1..=10).map(|k| (k as f64 * 0.1, k as f64, 0.0)).collect();
+        let e = read_answer(&answer(&short, b""), &fields()).unwrap_err();
+        assert_eq!(e.kind, FailureKind::InvalidAnswer);
+        assert!(e.message.contains("covers only 1.00 s"), "{e}");
+        let e = read_answer(&answer(&[], b""), &fields()).unwrap_err();
+        assert!(e.message.contains("empty"));
+        let mut nan: Vec<_> = (1..=64).map(|k| (k as f64 * 0.1, k as f64, 0.0)).collect();
+        nan[5].1 = f64::NAN;
+        let e = read_answer(&answer(&nan, b""), &fields()).unwrap_err();
+        assert_eq!(e.kind, FailureKind::InvalidAnswer);
+    }
+
+    #[test]
+    fn explanations_from_json_text_and_binary() {
+        let f = fields();
+        let (e, d) = explanation(
+            br#"{"reasoning": "Stop at the sign.", "decision": "stop_for_sign"}"#,
+            &f,
+        );
+        assert_eq!(e, "Stop at the sign.");
+        assert_eq!(d, Some(Decision::StopForSign));
+        let (e, _) = explanation(br#"{"coc": "A", "reasoning": "B"}"#, &f);
+        assert_eq!(e, "A");
+        let (e, _) = explanation(b"  Nudge left.\n", &f);
+        assert_eq!(e, "Nudge left.");
+        // A protobuf (CarlaDriveDebugInfo-like): field 1 string, field 2 float.
+        let (e, _) = explanation(b"\x0a\x0eroute_follower\x15\x00\x00\x80\x3f", &f);
+        assert_eq!(e, "");
+        let (e, _) = explanation(&[0xff, 0xfe, 0x00], &f);
+        assert_eq!(e, "");
+    }
+}

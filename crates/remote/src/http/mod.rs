@@ -1,0 +1,27 @@
+//! A small HTTP/JSON protocol for planners, both ways round.
+//!
+//! - `POST /v1/plan`: the planner's input as JSON (frames as base64 PNG or JPEG) →
+//!   `200 {"trajectory": [[x, y] × 64], "explanation": "…", "decision": "…" | null}`;
+//!   errors are 4xx/5xx with `{"error": "…"}`.
+//! - `GET /v1/health`: `200 {"status": "ok", "planner": "…"}`.
+//!
+//! [`Client`] is a planner behind this protocol as a [`Planner`](crate::Planner);
+//! [`serve`] puts any [`Planner`](crate::Planner) behind it. The schema is
+//! `docs/http-planner.openapi.yaml`; `docs/remote.md` has the prose.
+
+mod client;
+mod server;
+mod types;
+
+pub use client::{Client, ClientOptions};
+pub use server::{ServeOptions, serve};
+
+pub use crate::{ImageFormat, ServerHandle};
+
+/// The path of the planning call.
+pub const PLAN_PATH: &str = "/v1/plan";
+/// The path of the health check.
+pub const HEALTH_PATH: &str = "/v1/health";
+/// The largest request or answer body either end accepts (256 MiB: sixteen 1080p PNG
+/// frames in base64 fit).
+pub const MAX_BODY_BYTES: usize = 256 * 1024 * 1024;

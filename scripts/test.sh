@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# The tests, set-up included (the README's test command; .ci/run runs it):
+#   1. the Python peer of the interop tests (carla-driver-interface, an independent
+#      implementation of AlpaSim's egodriver contract) in target/pyenv, once;
+#   2. every test of the workspace with cargo-nextest (extra arguments are passed on).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/python-peers.sh >/dev/null
+exec cargo nextest run "$@"
