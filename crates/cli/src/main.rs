@@ -8,6 +8,7 @@ mod bench_campaign;
 mod campaign_cmd;
 mod perturb_cmd;
 mod planner_cmd;
+mod rco_cmd;
 mod serve_cmd;
 mod world_cmd;
 
@@ -65,6 +66,11 @@ enum Command {
     Planner(planner_cmd::PlannerArgs),
     /// Campaigns: clips × conditions × seeds against a planner, in a crash-safe store.
     Campaign(campaign_cmd::CampaignArgs),
+    /// The LLM-RCO controller: replay recorded observations through it, or time it.
+    #[command(
+        after_help = "Examples:\n  fogline rco replay crates/rco/tests/data/observations.jsonl\n  fogline rco bench"
+    )]
+    Rco(rco_cmd::RcoArgs),
     /// Serve the reference planner over AlpaSim's egodriver gRPC contract or HTTP/JSON.
     #[command(
         after_help = "Examples:\n  fogline serve egodriver --addr 127.0.0.1:50051\n  fogline serve http --addr 127.0.0.1:8080"
@@ -232,6 +238,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Planner(a) => planner_cmd::planner(a),
         Command::Serve(a) => serve_cmd::serve(a),
         Command::Campaign(a) => campaign_cmd::campaign(a),
+        Command::Rco(a) => rco_cmd::rco(a),
     }
 }
 

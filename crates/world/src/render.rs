@@ -101,13 +101,19 @@ pub fn render(scene: &Scene, calib: &CameraCalib, t: f64, with_depth: bool) -> V
     let boxes = boxes_of(scene, &ids, cam.w, cam.h);
     let depth = with_depth.then(|| {
         let mut dist = zbuf;
+        // a² per column once (the same bits as computing it per pixel).
+        let aa: Vec<f64> = (0..cam.w)
+            .map(|u| {
+                let a = (u as f64 + 0.5 - cam.cx) / cam.fx;
+                a * a
+            })
+            .collect();
         for v in 0..cam.h {
             let b = (v as f64 + 0.5 - cam.cy) / cam.fy;
-            for u in 0..cam.w {
-                let a = (u as f64 + 0.5 - cam.cx) / cam.fx;
-                let z = &mut dist[v * cam.w + u];
+            let bb = b * b;
+            for (z, &aa) in dist[v * cam.w..(v + 1) * cam.w].iter_mut().zip(&aa) {
                 if z.is_finite() {
-                    *z = (f64::from(*z) * (1.0 + a * a + b * b).sqrt()) as f32;
+                    *z = (f64::from(*z) * (1.0 + aa + bb).sqrt()) as f32;
                 }
             }
         }
@@ -122,9 +128,26 @@ pub fn render(scene: &Scene, calib: &CameraCalib, t: f64, with_depth: bool) -> V
 
 #[inline]
 fn put(rgb: &mut [u8], i: usize, c: Rgb) {
-    rgb[3 * i] = c[0].clamp(0.0, 255.0).round() as u8;
-    rgb[3 * i + 1] = c[1].clamp(0.0, 255.0).round() as u8;
-    rgb[3 * i + 2] = c[2].clamp(0.0, 255.0).round() as u8;
+    rgb[3 * i] = to_u8(c[0]);
+    rgb[3 * i + 1] = to_u8(c[1]);
+    rgb[3 * i + 2] = to_u8(c[2]);
+}
+
+/// `x.clamp(0, 255).round() as u8`, bit for bit, without a call to `roundf` (which is not
+/// inlined on baseline x86-64): for `0 ≤ x < 2^24` the fractional part `x − trunc(x)` is exact,
+/// and rounding is half away from zero. NaN gives 0, as `round` does.
+#[inline]
+fn to_u8(x: f32) -> u8 {
+    let x = x.clamp(0.0, 255.0);
+    let i = x as u32;
+    (i + u32::from(x - i as f32 >= 0.5)) as u8
+}
+
+/// `x.floor() as i64`, exactly, for `|x| < 2^62` (no call to `floor`).
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x { t - 1 } else { t }
 }
 
 #[inline]
@@ -144,10 +167,7 @@ fn scale(a: Rgb, k: f32) -> Rgb {
 /// A hash of a ground cell, uniform in `[-1, 1)`.
 #[inline]
 fn cell_noise(seed: u64, x: f64, y: f64) -> f32 {
-    let (ix, iy) = (
-        (x * 4.0).floor() as i64 as u64,
-        (y * 4.0).floor() as i64 as u64,
-    );
+    let (ix, iy) = (floor_i64(x * 4.0) as u64, floor_i64(y * 4.0) as u64);
     let mut h =
         seed ^ ix.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ iy.wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
     h ^= h >> 29;
@@ -497,11 +517,7 @@ fn fill_polygon(
         return;
     }
     let y1 = y1 as usize;
-    let c8 = [
-        col[0].clamp(0.0, 255.0).round() as u8,
-        col[1].clamp(0.0, 255.0).round() as u8,
-        col[2].clamp(0.0, 255.0).round() as u8,
-    ];
+    let c8 = [to_u8(col[0]), to_u8(col[1]), to_u8(col[2])];
     // 1/z = (n.x·a + n.y·b + n.z)/k with a = (u - cx)/fx, b = (v - cy)/fy.
     let (ia, ib, ic) = (nrm[0] / (k * cam.fx), nrm[1] / (k * cam.fy), nrm[2] / k);
     let ic = ic - ia * cam.cx - ib * cam.cy;
@@ -592,4 +608,40 @@ fn boxes_of(scene: &Scene, ids: &[u16], w: usize, h: usize) -> Vec<ObjectBox> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_rounding_and_floor_match_the_library_bit_for_bit() {
+        let mut x = -3.0f32;
+        while x < 260.0 {
+            let up = f32::from_bits(x.to_bits().wrapping_add(1));
+            let down = f32::from_bits(x.to_bits().wrapping_sub(1));
+            for v in [x, up, down, x + 0.5, x - 0.5] {
+                assert_eq!(to_u8(v), v.clamp(0.0, 255.0).round() as u8, "{v}");
+            }
+            x += 0.031_25;
+        }
+        for v in [
+            0.499_999_97_f32,
+            0.5,
+            254.5,
+            255.49,
+            f32::NAN,
+            f32::INFINITY,
+            -0.0,
+        ] {
+            assert_eq!(to_u8(v), v.clamp(0.0, 255.0).round() as u8, "{v}");
+        }
+        let mut y = -1e6f64;
+        while y < 1e6 {
+            for v in [y, y + 1e-9, y - 1e-9, y.trunc(), -y.trunc()] {
+                assert_eq!(floor_i64(v), v.floor() as i64, "{v}");
+            }
+            y += 977.123;
+        }
+    }
 }

@@ -62,7 +62,8 @@ impl Centre {
 
 fn wrap(a: f64) -> f64 {
     let tau = std::f64::consts::TAU;
-    let mut a = a % tau;
+    // `a % tau` is `a` itself when |a| < tau (the usual case): skip the fmod call.
+    let mut a = if a.abs() < tau { a } else { a % tau };
     if a > std::f64::consts::PI {
         a -= tau;
     } else if a <= -std::f64::consts::PI {

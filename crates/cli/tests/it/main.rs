@@ -8,5 +8,6 @@ mod envelope_cmd;
 mod interop;
 mod perturb_cmd;
 mod planner_cmd;
+mod rco_cmd;
 mod reference_planner;
 mod world_cmd;
