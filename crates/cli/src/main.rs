@@ -9,6 +9,7 @@ mod campaign_cmd;
 mod perturb_cmd;
 mod planner_cmd;
 mod rco_cmd;
+mod report_cmd;
 mod serve_cmd;
 mod world_cmd;
 
@@ -76,6 +77,11 @@ enum Command {
         after_help = "Examples:\n  fogline serve egodriver --addr 127.0.0.1:50051\n  fogline serve http --addr 127.0.0.1:8080"
     )]
     Serve(serve_cmd::ServeArgs),
+    /// Write the self-contained HTML report (figures and tables) of an envelope directory.
+    #[command(
+        after_help = "Examples:\n  fogline report envelope/ --out report.html\n  fogline report fogline-demo/\n  fogline report envelope/ --sim closed-loop/ --out report.html"
+    )]
+    Report(report_cmd::ReportArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -239,6 +245,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Serve(a) => serve_cmd::serve(a),
         Command::Campaign(a) => campaign_cmd::campaign(a),
         Command::Rco(a) => rco_cmd::rco(a),
+        Command::Report(a) => report_cmd::report(a),
     }
 }
 
@@ -317,7 +324,7 @@ fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
     let t1 = std::time::Instant::now();
     let env = fogline_envelope::analyze(&table, &p)?;
     log::info!("analysed in {:.2} s", t1.elapsed().as_secs_f64());
-    let written = write_outputs(&env, &a.out)?;
+    let written = write_outputs(&env, &table, &a.out)?;
     print_summary(&env, &written, a.json)?;
     Ok(gate(&env))
 }
@@ -369,9 +376,14 @@ struct Written {
     json: PathBuf,
     markdown: PathBuf,
     odd: PathBuf,
+    report: PathBuf,
 }
 
-fn write_outputs(env: &Envelope, dir: &Path) -> Result<Written> {
+fn write_outputs(
+    env: &Envelope,
+    table: &fogline_envelope::PairTable,
+    dir: &Path,
+) -> Result<Written> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let json = serde_json::to_vec_pretty(env).context("cannot serialise the envelope")?;
     let md = fogline_envelope::markdown::render(env);
@@ -381,10 +393,12 @@ fn write_outputs(env: &Envelope, dir: &Path) -> Result<Written> {
         json: dir.join("envelope.json"),
         markdown: dir.join("envelope.md"),
         odd: dir.join("odd.json"),
+        report: dir.join("report.html"),
     };
     write_atomic(&w.json, &json)?;
     write_atomic(&w.markdown, md.as_bytes())?;
     write_atomic(&w.odd, &odd)?;
+    report_cmd::write_report(env, Some(table), &w.report)?;
     Ok(w)
 }
 
@@ -413,6 +427,7 @@ fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {
             "envelope": w.json,
             "markdown": w.markdown,
             "odd": w.odd,
+            "report": w.report,
             "n_pairs": env.corpus.n_pairs,
             "n_changed": env.corpus.n_changed,
             "chosen_k": env.severity.chosen_k,
@@ -471,6 +486,7 @@ fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {
     writeln!(out, "{}", w.json.display())?;
     writeln!(out, "{}", w.markdown.display())?;
     writeln!(out, "{}", w.odd.display())?;
+    writeln!(out, "{}", w.report.display())?;
     Ok(())
 }
 
@@ -536,7 +552,7 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
         table.len(),
         t1.elapsed().as_secs_f64()
     );
-    let w = write_outputs(&env, &a.out)?;
+    let w = write_outputs(&env, &table, &a.out)?;
     print_summary(&env, &w, false)?;
     writeln!(
         std::io::stdout().lock(),

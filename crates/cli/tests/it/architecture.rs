@@ -20,6 +20,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
             "fogline-sim",
             &[
                 "fogline-types",
+                "fogline-stats",
                 "fogline-world",
                 "fogline-perturb",
                 "fogline-planner",

@@ -50,7 +50,7 @@ fn envelope_writes_the_three_files_and_prints_their_paths() {
         String::from_utf8_lossy(&o.stderr)
     );
     let stdout = String::from_utf8(o.stdout).unwrap();
-    for f in ["envelope.json", "envelope.md", "odd.json"] {
+    for f in ["envelope.json", "envelope.md", "odd.json", "report.html"] {
         assert!(out.join(f).is_file(), "{f}");
         assert!(stdout.contains(f), "{stdout}");
     }
@@ -290,7 +290,7 @@ fn help_lists_the_commands_with_examples() {
 fn demo_runs_offline_and_prints_its_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
-    let o = fogline(&["demo", "--clips", "150", "--out", out.to_str().unwrap()]);
+    let o = fogline(&["demo", "--clips", "60", "--out", out.to_str().unwrap()]);
     assert_eq!(
         o.status.code(),
         Some(0),
@@ -298,6 +298,12 @@ fn demo_runs_offline_and_prints_its_outputs() {
         String::from_utf8_lossy(&o.stderr)
     );
     let s = String::from_utf8(o.stdout).unwrap();
-    assert!(s.contains("envelope.md"));
-    assert!(out.join("pairs.csv").is_file() && out.join("envelope.json").is_file());
+    // The campaign ran on the world: 60 clips × 9 conditions, the pairs exported, the
+    // analysis and the report written, and their paths printed.
+    assert!(s.contains("ran 540 runs"), "{s}");
+    assert!(s.contains("pairs (seed 0): 480"), "{s}");
+    assert!(s.contains("envelope.md") && s.contains("report.html"), "{s}");
+    for f in ["campaign.toml", "campaign.sqlite", "runs.csv", "pairs.csv", "pairs.parquet", "envelope.json", "report.html"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
 }

@@ -10,4 +10,5 @@ mod perturb_cmd;
 mod planner_cmd;
 mod rco_cmd;
 mod reference_planner;
+mod report_cmd;
 mod world_cmd;
