@@ -11,6 +11,7 @@ mod planner_cmd;
 mod rco_cmd;
 mod report_cmd;
 mod serve_cmd;
+mod sim_cmd;
 mod world_cmd;
 
 use std::io::Write as _;
@@ -72,6 +73,12 @@ enum Command {
         after_help = "Examples:\n  fogline rco replay crates/rco/tests/data/observations.jsonl\n  fogline rco bench"
     )]
     Rco(rco_cmd::RcoArgs),
+    /// Closed-loop evaluation: the route suite, perception deficits, the RCO take-over and
+    /// Leaderboard-1.0 scores.
+    #[command(
+        after_help = "Examples:\n  fogline sim run --quick --out sim/\n  fogline sim run --out sim/            # the full suite: 36 routes × 9 configurations"
+    )]
+    Sim(sim_cmd::SimArgs),
     /// Serve the reference planner over AlpaSim's egodriver gRPC contract or HTTP/JSON.
     #[command(
         after_help = "Examples:\n  fogline serve egodriver --addr 127.0.0.1:50051\n  fogline serve http --addr 127.0.0.1:8080"
@@ -245,6 +252,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Serve(a) => serve_cmd::serve(a),
         Command::Campaign(a) => campaign_cmd::campaign(a),
         Command::Rco(a) => rco_cmd::rco(a),
+        Command::Sim(a) => sim_cmd::sim(a),
         Command::Report(a) => report_cmd::report(a),
     }
 }

@@ -302,7 +302,8 @@ pub struct Scene {
     pub texture_seed: u64,
 }
 
-/// Uniform draws for scene building.
+/// Uniform draws for scene building (and the closed-loop simulator's streams).
+#[derive(Debug, Clone)]
 pub struct Draw(Xoshiro256pp);
 
 impl Draw {
@@ -334,6 +335,11 @@ impl Draw {
     /// One of `items`.
     pub fn pick<T: Copy>(&mut self, items: &[T]) -> T {
         items[self.index(items.len())]
+    }
+
+    /// 64 raw bits.
+    pub fn bits(&mut self) -> u64 {
+        self.0.next_u64()
     }
 }
 

@@ -302,8 +302,19 @@ fn demo_runs_offline_and_prints_its_outputs() {
     // analysis and the report written, and their paths printed.
     assert!(s.contains("ran 540 runs"), "{s}");
     assert!(s.contains("pairs (seed 0): 480"), "{s}");
-    assert!(s.contains("envelope.md") && s.contains("report.html"), "{s}");
-    for f in ["campaign.toml", "campaign.sqlite", "runs.csv", "pairs.csv", "pairs.parquet", "envelope.json", "report.html"] {
+    assert!(
+        s.contains("envelope.md") && s.contains("report.html"),
+        "{s}"
+    );
+    for f in [
+        "campaign.toml",
+        "campaign.sqlite",
+        "runs.csv",
+        "pairs.csv",
+        "pairs.parquet",
+        "envelope.json",
+        "report.html",
+    ] {
         assert!(out.join(f).is_file(), "{f}");
     }
 }

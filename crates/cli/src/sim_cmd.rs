@@ -1,0 +1,272 @@
+//! `fogline sim run`: the closed-loop experiments of the LLM-RCO paper (sections 6–7) on the
+//! built-in world — a route suite, the camera-driven baseline, perception deficits, the RCO
+//! take-over, CARLA Leaderboard 1.0 scores — written as tables and per-route records. See
+//! `docs/sim.md`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Subcommand, ValueEnum};
+use fogline_rco::OpenAiParams;
+use fogline_sim::config::{BackendSetup, ConfigSet, configs};
+use fogline_sim::experiment::{ExperimentParams, run_experiment};
+use fogline_sim::output::{markdown, write_all};
+use fogline_sim::run::RunParams;
+use fogline_sim::sense::DeficitKind;
+use fogline_sim::suite::SuiteParams;
+
+/// Arguments of `fogline sim`.
+#[derive(Args)]
+pub struct SimArgs {
+    #[command(subcommand)]
+    what: SimCommand,
+}
+
+#[derive(Subcommand)]
+enum SimCommand {
+    /// Drive the route suite under every configuration and write tables 1–3 and per-route
+    /// records.
+    #[command(
+        after_help = "Examples:\n  fogline sim run --quick --out sim-quick\n  fogline sim run --out sim-results\n  fogline sim run --configs main,ablation,sweep --seeds 3 --out sim-all\n  fogline sim run --quick --backend openai --url http://127.0.0.1:8000 --model Qwen/Qwen2-VL-2B-Instruct"
+    )]
+    Run(Box<RunArgs>),
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum BackendArg {
+    /// Offline, deterministic commonsense rules.
+    Rules,
+    /// An OpenAI-compatible /v1/chat/completions server.
+    Openai,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// The quick suite (2 towns × 2 routes of about 450 m) for CI and the demo.
+    #[arg(long, conflicts_with = "suite")]
+    quick: bool,
+    /// A suite file (TOML or JSON; see docs/sim.md). Default: the Longest6-like suite (36
+    /// routes, about 1.5 km each).
+    #[arg(long)]
+    suite: Option<PathBuf>,
+    /// Configuration sets, comma-separated: main (tables 1 and 2), ablation (table 3), sweep
+    /// (the planning step-limit sweep).
+    #[arg(long, value_delimiter = ',', default_value = "main")]
+    configs: Vec<String>,
+    /// Deficits, comma-separated: traffic_light, stop_sign, pedestrian, bicycle.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "traffic_light,stop_sign,pedestrian,bicycle"
+    )]
+    deficits: Vec<String>,
+    /// The first seed (towns, routes, traffic).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Number of seeds (seed, seed+1, …).
+    #[arg(long, default_value_t = 1)]
+    seeds: u64,
+    /// Output directory.
+    #[arg(long, default_value = "sim-results")]
+    out: PathBuf,
+    /// Who answers the RCO controller's queries.
+    #[arg(long, value_enum, default_value = "rules")]
+    backend: BackendArg,
+    /// openai: the server's base URL (http only).
+    #[arg(long, default_value = "http://127.0.0.1:8000")]
+    url: String,
+    /// openai: the model name.
+    #[arg(long, default_value = "Qwen/Qwen2-VL-2B-Instruct")]
+    model: String,
+    /// openai: the environment variable holding the API key (never printed).
+    #[arg(long, default_value = "OPENAI_API_KEY")]
+    api_key_env: String,
+    /// openai: the limit of one call, ms.
+    #[arg(long, default_value_t = 20_000)]
+    timeout_ms: u64,
+    /// Latency counted per LLM call for system time, ms, or `measured`.
+    #[arg(long, default_value = "1000")]
+    llm_latency_ms: String,
+    /// Table 2's system-time limit, s (the paper's 30 minutes).
+    #[arg(long, default_value_t = 1800.0)]
+    system_time_limit_s: f64,
+    /// The stop-sign penalty factor (Leaderboard 1.0: 0.8; Longest6's fork: 1.0).
+    #[arg(long, default_value_t = 0.8)]
+    stop_sign_penalty: f64,
+    /// Image width of the front cameras, px.
+    #[arg(long, default_value_t = 192)]
+    width: u32,
+    /// Image height of the front cameras, px.
+    #[arg(long, default_value_t = 144)]
+    height: u32,
+    /// Image width of the telephoto camera, px (same aspect ratio).
+    #[arg(long, default_value_t = 256)]
+    tele_width: u32,
+    /// Image width of the side cameras (the RCO controller's side views), px.
+    #[arg(long, default_value_t = 128)]
+    side_width: u32,
+    /// Agent steps per second (frames, planner, RCO); must divide 20.
+    #[arg(long, default_value_t = 2.5)]
+    agent_hz: f64,
+    /// Print the summary as JSON on stdout instead of the tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `fogline sim`.
+pub fn sim(a: SimArgs) -> Result<ExitCode> {
+    match a.what {
+        SimCommand::Run(r) => run(*r),
+    }
+}
+
+fn run(a: RunArgs) -> Result<ExitCode> {
+    let suite = match (&a.suite, a.quick) {
+        (Some(path), _) => SuiteParams::read(path)?,
+        (None, true) => SuiteParams::quick(),
+        (None, false) => SuiteParams::longest6(),
+    };
+    let mut sets = Vec::new();
+    for c in &a.configs {
+        sets.push(
+            ConfigSet::parse(c).with_context(|| {
+                format!("--configs: unknown set {c:?} (main, ablation or sweep)")
+            })?,
+        );
+    }
+    let mut deficits = Vec::new();
+    for d in &a.deficits {
+        let k = DeficitKind::parse(d).with_context(|| {
+            format!(
+                "--deficits: unknown deficit {d:?} (traffic_light, stop_sign, pedestrian, bicycle)"
+            )
+        })?;
+        if !deficits.contains(&k) {
+            deficits.push(k);
+        }
+    }
+    if a.seeds == 0 {
+        bail!("--seeds must be at least 1");
+    }
+    let llm_latency_ms = match a.llm_latency_ms.as_str() {
+        "measured" => None,
+        v => Some(v.parse::<f64>().with_context(|| {
+            format!("--llm-latency-ms: expected a number of ms or `measured`, got {v:?}")
+        })?),
+    };
+    let backend = match a.backend {
+        BackendArg::Rules => BackendSetup::Rules,
+        BackendArg::Openai => BackendSetup::Openai(OpenAiParams {
+            base_url: a.url.clone(),
+            model: a.model.clone(),
+            api_key_env: a.api_key_env.clone(),
+            timeout_ms: a.timeout_ms,
+            ..OpenAiParams::default()
+        }),
+    };
+    let mut run_params = RunParams {
+        stop_sign_penalty: a.stop_sign_penalty,
+        ..RunParams::default()
+    };
+    run_params.sensors.width = a.width;
+    run_params.sensors.height = a.height;
+    run_params.sensors.agent_hz = a.agent_hz;
+    run_params.sensors.side_width = a.side_width;
+    run_params.sensors.tele_width = a.tele_width;
+    let params = ExperimentParams {
+        suite,
+        seeds: (a.seed..a.seed + a.seeds).collect(),
+        configs: configs(&sets, &deficits, &backend),
+        run: run_params,
+        system_time_limit_s: a.system_time_limit_s,
+        llm_latency_ms,
+    };
+    params.validate()?;
+    let n_runs = params.suite.n_routes() * params.configs.len() * params.seeds.len();
+    log::info!(
+        "sim run: suite {} ({} routes) x {} configuration(s) x {} seed(s) = {n_runs} runs on {} thread(s)",
+        params.suite.name,
+        params.suite.n_routes(),
+        params.configs.len(),
+        params.seeds.len(),
+        rayon::current_num_threads()
+    );
+    let start = Instant::now();
+    let step = (n_runs / 20).max(1);
+    let progress = move |done: usize, total: usize| {
+        if done.is_multiple_of(step) || done == total {
+            log::info!(
+                "{done}/{total} runs, {:.0} s",
+                start.elapsed().as_secs_f64()
+            );
+        }
+    };
+    let results = run_experiment(&params, 0, &progress)?;
+    let written = write_all(&results, &a.out)
+        .with_context(|| format!("writing results to {}", a.out.display()))?;
+    let mut stdout = std::io::stdout().lock();
+    use std::io::Write as _;
+    if a.json {
+        let doc = serde_json::json!({
+            "summary": results.summary,
+            "wall_s": results.wall_s,
+            "threads": results.threads,
+            "warnings": results.warnings,
+            "files": {
+                "results": written.results,
+                "records": written.records,
+                "tables": written.tables,
+                "closed_loop": written.closed_loop,
+            },
+        });
+        writeln!(stdout, "{}", serde_json::to_string_pretty(&doc)?)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    write!(stdout, "{}", markdown(&results))?;
+    // The speed goal: the full suite's deficit runs (36 routes × 4 deficits × with/without
+    // RCO, one seed) within 10 minutes on two cores.
+    let deficit_runs = results
+        .records
+        .iter()
+        .filter(|r| {
+            params
+                .configs
+                .iter()
+                .any(|c| c.name == r.config && c.deficit.is_some())
+        })
+        .count();
+    let elapsed_deficit = results.summary.deficit_runs_wall_s / results.threads.max(1) as f64;
+    writeln!(
+        stdout,
+        "\nfogline sim run: {} runs in {:.1} s ({} thread(s)); {} deficit runs: {:.1} s of worker time, about {:.1} s elapsed (goal for the full suite, 288 runs on 2 cores: <= 600 s{})",
+        results.records.len(),
+        results.wall_s,
+        results.threads,
+        deficit_runs,
+        results.summary.deficit_runs_wall_s,
+        elapsed_deficit,
+        if deficit_runs == 288 && results.threads == 2 {
+            if elapsed_deficit <= 600.0 {
+                ": met"
+            } else {
+                ": NOT met"
+            }
+        } else {
+            ""
+        }
+    )?;
+    for w in &results.warnings {
+        writeln!(stdout, "warning: {w}")?;
+    }
+    writeln!(
+        stdout,
+        "wrote {}, {}, {}, {}",
+        written.tables.display(),
+        written.results.display(),
+        written.records.display(),
+        written.closed_loop.display()
+    )?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,488 @@
+//! The agent under test: a camera-driven baseline built from the reference planner, a speed
+//! PID, a pure-pursuit steering controller on the route, and an "unstick" rule.
+//!
+//! Every agent step (5 Hz by default) the planner gets the front-wide and front-tele frames
+//! (the last four, oldest first) and the ego history, and answers with a decision and its
+//! perception. The agent turns that into a target speed:
+//!
+//! | planner decision | target speed |
+//! |---|---|
+//! | keep lane, proceed on green, nudge, pass, turn right | the cruise speed (8 m/s), lower before a turn of the route (see below) |
+//! | follow or slow for the lead | the intelligent driver model behind the perceived lead (gap, speed; braking lamps: −2.6 m/s²), projected 0.5 s ahead |
+//! | stop for a red light, a stop sign, or yield to a crossing | `√(2 · 2.5 m/s² · d)`, recomputed every control step, with `d` the distance left to the planned stop point (the planned trajectory's last waypoint), or to 5.5 m before a zebra crossing the planner sees short of it |
+//!
+//! **Red lights**: once the planner decided to stop for a red or amber light, the agent keeps
+//! that stop point (in distance driven) until the planner reports a green light or the car
+//! is more than 1 m past it — the signal head leaves the cameras' view as the car gets
+//! close.
+//!
+//! Before a turn of the route the target is capped so that the car reaches 4 m/s (right) or
+//! 5.5 m/s (left) at the junction, braking at 2 m/s². A speed PID (kp 0.8, ki 0.1 1/s,
+//! throttle ≤ 1) tracks the target; the brake is `0.8·(v − target)` when the car is more
+//! than 0.3 m/s too fast, and 1 when it should stand still.
+//!
+//! **Stop signs**: a stop-sign decision's stop point is kept (the sign leaves the cameras'
+//! view as the car gets close) until the car has stood still (< 0.1 m/s) for 1.5 s there, or
+//! is more than 1 m past it. The planner stops for any stop sign it sees, also once it has
+//! stopped: after that 1.5 s stop the agent treats stop-sign decisions as "keep lane" for
+//! the next 30 m driven.
+//!
+//! **Unstick** (like TransFuser's creeping): after 55 s standing still, the agent ignores the
+//! planner for 4 s and drives at up to 4 m/s; the count restarts once it moves.
+//!
+//! **Steering**: pure pursuit on the dense route, look-ahead `0.8·v + 2` m (3.5–10 m) from the
+//! rear axle, the steer that the bicycle model needs for the pursuit curvature — the agent
+//! gets the route as CARLA agents get their global plan.
+
+use fogline_planner::ReferencePlanner;
+use fogline_planner::perceive::ObjectKind;
+use fogline_types::clip::{CameraInput, Decision, EgoPose, PlannerInput};
+use fogline_types::motion::EGO_FRONT_M;
+use serde::{Deserialize, Serialize};
+
+use crate::geom::{dist, dot, sub};
+use crate::score::DenseRoute;
+use crate::vehicle::{BicycleParams, VehicleControl, VehicleState};
+
+/// Settings of the baseline agent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AgentParams {
+    /// Cruise speed, m/s.
+    pub cruise_mps: f64,
+    /// Speed through right turns, m/s.
+    pub right_turn_mps: f64,
+    /// Speed through left turns, m/s.
+    pub left_turn_mps: f64,
+    /// Deceleration planned before turns, m/s².
+    pub turn_decel_mps2: f64,
+    /// Deceleration towards a planned stop, m/s².
+    pub stop_decel_mps2: f64,
+    /// Standing still this long triggers the unstick rule, s.
+    pub unstick_after_s: f64,
+    /// The unstick rule drives this long, s.
+    pub unstick_for_s: f64,
+    /// Speed of the unstick rule, m/s.
+    pub unstick_mps: f64,
+    /// Distance during which a passed stop sign is ignored, m.
+    pub sign_memory_m: f64,
+}
+
+impl Default for AgentParams {
+    fn default() -> Self {
+        Self {
+            cruise_mps: 8.0,
+            right_turn_mps: 4.0,
+            left_turn_mps: 5.5,
+            turn_decel_mps2: 2.0,
+            stop_decel_mps2: 2.5,
+            unstick_after_s: 55.0,
+            unstick_for_s: 4.0,
+            unstick_mps: 4.0,
+            sign_memory_m: 30.0,
+        }
+    }
+}
+
+/// What the agent concluded at its last planning step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Intent {
+    /// The planner's decision.
+    pub decision: Option<Decision>,
+    /// The target speed, m/s.
+    pub target_mps: f64,
+    /// Where to stand, in distance driven (the target speed follows the braking profile to
+    /// it every control step), m.
+    pub stop_at_m: Option<f64>,
+    /// The perceived vehicle ahead: gap, m.
+    pub lead_gap_m: Option<f64>,
+    /// Whether the planner failed (the agent then brakes).
+    pub failed: bool,
+}
+
+/// The baseline agent's state.
+#[derive(Debug, Clone)]
+pub struct Baseline {
+    params: AgentParams,
+    planner: ReferencePlanner,
+    intent: Intent,
+    integral: f64,
+    stopped_s: f64,
+    sign_stop_s: f64,
+    sign_free_until_m: f64,
+    unstick_left_s: f64,
+    /// Times the unstick rule fired.
+    pub unstick_count: u32,
+    /// Planner calls.
+    pub plans: u64,
+    /// Planner errors.
+    pub plan_errors: u64,
+    /// The last perception, in words (filled when trace logging is on).
+    pub debug: String,
+    red_stop_at_m: Option<f64>,
+    sign_stop_at_m: Option<f64>,
+}
+
+/// Gap kept before a crossing when stopping, m.
+pub const CROSSING_GAP_M: f64 = 5.5;
+
+/// What the planner is given each step.
+pub struct AgentInput<'a> {
+    /// Cameras with their frames, oldest first.
+    pub cameras: Vec<CameraInput<'a>>,
+    /// The ego history in the rig frame now.
+    pub history: &'a [EgoPose],
+}
+
+impl Baseline {
+    /// A fresh agent.
+    pub fn new(params: AgentParams) -> Self {
+        Self {
+            params,
+            planner: ReferencePlanner::new(),
+            intent: Intent::default(),
+            integral: 0.0,
+            stopped_s: 0.0,
+            sign_stop_s: 0.0,
+            sign_free_until_m: f64::NEG_INFINITY,
+            unstick_left_s: 0.0,
+            unstick_count: 0,
+            plans: 0,
+            plan_errors: 0,
+            debug: String::new(),
+            red_stop_at_m: None,
+            sign_stop_at_m: None,
+        }
+    }
+
+    /// The last intent.
+    pub fn intent(&self) -> Intent {
+        self.intent
+    }
+
+    /// The target speed now: the last intent's, capped by the braking profile to its stop
+    /// point, m/s.
+    pub fn target_now(&self, odometer_m: f64) -> f64 {
+        let profile = |at: Option<f64>| {
+            at.map_or(f64::INFINITY, |m| {
+                let d = m - odometer_m - 0.3;
+                if d < 0.3 {
+                    0.0
+                } else {
+                    (2.0 * self.params.stop_decel_mps2 * d).sqrt()
+                }
+            })
+        };
+        self.intent
+            .target_mps
+            .min(profile(self.intent.stop_at_m))
+            .min(profile(self.red_stop_at_m))
+            .min(profile(self.sign_stop_at_m))
+    }
+
+    /// Whether the unstick rule is driving.
+    pub fn unsticking(&self) -> bool {
+        self.unstick_left_s > 0.0
+    }
+
+    /// A planning step: runs the planner on the frames and updates the target speed.
+    /// `turn_cap_mps` is the cap before the route's next turn; `odometer_m` the distance
+    /// driven so far; `speed_scale` converts the planner's perceived speeds back to m/s when
+    /// the frames are spaced wider than 0.1 s (see [`crate::run`]).
+    pub fn plan(
+        &mut self,
+        input: AgentInput<'_>,
+        speed_mps: f64,
+        turn_cap_mps: f64,
+        odometer_m: f64,
+        speed_scale: f64,
+    ) -> Intent {
+        self.plans += 1;
+        let pin = PlannerInput {
+            cameras: input.cameras,
+            ego_history: input.history,
+        };
+        let p = &self.params;
+        let cruise = p.cruise_mps.min(turn_cap_mps);
+        let out = self.planner.plan_with_perception(&pin);
+        let (perc, plan) = match out {
+            Ok(x) => x,
+            Err(_) => {
+                self.plan_errors += 1;
+                self.intent = Intent {
+                    decision: None,
+                    target_mps: 0.0,
+                    stop_at_m: None,
+                    lead_gap_m: None,
+                    failed: true,
+                };
+                return self.intent;
+            }
+        };
+        if log::log_enabled!(log::Level::Trace) {
+            self.debug = format!(
+                "lead {:?} zebra {:?} line {:?} light {:?} sign {:?} end {:?} lane {:?} road {:.0}",
+                perc.lead.map(|l| (
+                    (l.contact_x * 10.0).round() / 10.0,
+                    l.kind,
+                    (l.width_m * 10.0).round() / 10.0,
+                    (l.speed * 10.0).round() / 10.0,
+                    (l.right_edge * 10.0).round() / 10.0,
+                    (l.left_edge * 10.0).round() / 10.0
+                )),
+                perc.zebra,
+                perc.stop_line,
+                perc.light,
+                perc.stop_sign,
+                perc.road_end,
+                perc.lane.map(|l| (
+                    (l.offset * 100.0).round() / 100.0,
+                    (l.width * 100.0).round() / 100.0
+                )),
+                perc.road_lum
+            );
+        }
+        let mut decision = plan.decision;
+        if decision == Decision::StopForSign && odometer_m < self.sign_free_until_m {
+            decision = Decision::KeepLane;
+        }
+        // The planned stop point, or further back: 5.5 m before a crossing the planner sees
+        // short of it (where the stop line is; this keeps the crossing's stripes out of the
+        // planner's road-brightness reference while the car waits).
+        let stop_dist = || {
+            let planned = plan.trajectory.xy.last().map_or(0.0, |q| q[0].hypot(q[1]));
+            let before_zebra = perc
+                .zebra
+                .filter(|&z| perc.light.is_none_or(|(_, d)| z < d))
+                .map(|z| z - CROSSING_GAP_M - EGO_FRONT_M);
+            match before_zebra {
+                Some(b) if b < planned + 8.0 => planned.min(b.max(0.0)),
+                _ => planned,
+            }
+        };
+        let lead_gap = perc
+            .lead
+            .filter(|l| l.kind == ObjectKind::Vehicle)
+            .map(|l| l.gap);
+        let to_speed = |d: f64| {
+            if d < 0.5 {
+                0.0
+            } else {
+                (2.0 * p.stop_decel_mps2 * d).sqrt().min(cruise)
+            }
+        };
+        // Red-light memory: a red or amber light keeps the car at its stop point until green
+        // is seen (the head may leave the cameras' view as the car gets close).
+        match decision {
+            Decision::StopForRedLight => {
+                let at = odometer_m + stop_dist();
+                self.red_stop_at_m = Some(self.red_stop_at_m.map_or(at, |m: f64| m.min(at)));
+            }
+            Decision::ProceedOnGreen => self.red_stop_at_m = None,
+            _ => {}
+        }
+        if perc
+            .light
+            .is_some_and(|(l, _)| l == fogline_planner::perceive::Lamp::Green)
+        {
+            self.red_stop_at_m = None;
+        }
+        if self.red_stop_at_m.is_some_and(|m| odometer_m > m + 1.0) {
+            self.red_stop_at_m = None;
+        }
+        if self.sign_stop_at_m.is_some_and(|m| odometer_m > m + 1.0) {
+            self.sign_stop_at_m = None;
+        }
+        let mut stop_at = None;
+        let target = match decision {
+            Decision::StopForRedLight | Decision::StopForSign | Decision::YieldToCrossing => {
+                let at = odometer_m + stop_dist();
+                stop_at = Some(at);
+                if decision == Decision::StopForSign {
+                    self.sign_stop_at_m = Some(self.sign_stop_at_m.map_or(at, |m: f64| m.min(at)));
+                }
+                cruise
+            }
+            Decision::FollowLead | Decision::SlowForLead => match perc.lead {
+                Some(l) => {
+                    let lead_v = l.speed / speed_scale;
+                    let a = idm(speed_mps, cruise, l.gap, speed_mps - lead_v)
+                        + if l.braking { -1.0 } else { 0.0 };
+                    (speed_mps + 0.5 * a).clamp(0.0, cruise)
+                }
+                None => cruise,
+            },
+            _ => cruise,
+        };
+        let _ = to_speed;
+        self.intent = Intent {
+            decision: Some(plan.decision),
+            target_mps: target,
+            stop_at_m: stop_at,
+            lead_gap_m: lead_gap,
+            failed: false,
+        };
+        self.intent
+    }
+
+    /// A control step (every simulation tick): speed PID on the current target, pure
+    /// pursuit on the route. `route_s` is the ego's progress index on the dense route.
+    pub fn control(
+        &mut self,
+        state: &VehicleState,
+        route: &DenseRoute,
+        route_index: usize,
+        dt: f64,
+        odometer_m: f64,
+        bike: &BicycleParams,
+    ) -> VehicleControl {
+        let p = self.params;
+        let v = state.speed_mps;
+        // Stop-sign memory and the unstick rule.
+        if v < 0.1 {
+            self.stopped_s += dt;
+            let at_sign = self.intent.decision == Some(Decision::StopForSign)
+                || self.sign_stop_at_m.is_some_and(|m| odometer_m > m - 4.0);
+            if at_sign {
+                self.sign_stop_s += dt;
+                if self.sign_stop_s >= 1.5 {
+                    self.sign_free_until_m = odometer_m + p.sign_memory_m;
+                    self.sign_stop_at_m = None;
+                    self.sign_stop_s = 0.0;
+                }
+            }
+        } else {
+            self.stopped_s = 0.0;
+            self.sign_stop_s = 0.0;
+        }
+        if self.unstick_left_s > 0.0 {
+            self.unstick_left_s -= dt;
+        } else if self.stopped_s >= p.unstick_after_s {
+            self.unstick_left_s = p.unstick_for_s;
+            self.unstick_count += 1;
+            self.stopped_s = 0.0;
+        }
+        let target = if self.unstick_left_s > 0.0 {
+            p.unstick_mps
+        } else {
+            self.target_now(odometer_m)
+        };
+        let steer = pursuit_steer(state, route, route_index, bike);
+        speed_control(&mut self.integral, v, target, dt, steer)
+    }
+}
+
+/// The speed PID: throttle towards `target`, brake when too fast or when it should stand.
+pub fn speed_control(
+    integral: &mut f64,
+    v: f64,
+    target: f64,
+    dt: f64,
+    steer: f64,
+) -> VehicleControl {
+    let e = target - v;
+    if target < 0.05 {
+        *integral = 0.0;
+        return VehicleControl {
+            throttle: 0.0,
+            brake: 1.0,
+            steer,
+        };
+    }
+    if e < -0.3 {
+        *integral = 0.0;
+        return VehicleControl {
+            throttle: 0.0,
+            brake: (0.8 * -e).clamp(0.05, 1.0),
+            steer,
+        };
+    }
+    *integral = (*integral + e * dt).clamp(-2.0, 5.0);
+    VehicleControl {
+        throttle: (0.8 * e + 0.1 * *integral).clamp(0.0, 1.0),
+        brake: 0.0,
+        steer,
+    }
+}
+
+/// Pure pursuit on the dense route from `index`.
+pub fn pursuit_steer(
+    state: &VehicleState,
+    route: &DenseRoute,
+    index: usize,
+    bike: &BicycleParams,
+) -> f64 {
+    let look = (0.8 * state.speed_mps + 2.0).clamp(3.5, 10.0);
+    let o = [state.x_m, state.y_m];
+    let mut k = index;
+    while k + 1 < route.len() && dist(route.points[k], o) < look {
+        k += 1;
+    }
+    let target = route.points[k];
+    let h = state.heading();
+    let d = sub(target, o);
+    let x = dot(d, h);
+    let y = -h[1] * d[0] + h[0] * d[1];
+    let l2 = (x * x + y * y).max(1.0);
+    let kappa = 2.0 * y / l2;
+    bike.steer_for_curvature(kappa)
+}
+
+/// The intelligent driver model's acceleration (urban settings of the planner).
+pub fn idm(v: f64, v0: f64, gap: f64, dv: f64) -> f64 {
+    let (a, b, t, s0): (f64, f64, f64, f64) = (1.5, 3.0, 1.2, 4.0);
+    let free = 1.0 - (v / v0.max(0.1)).powi(4);
+    let s_star = s0 + (v * t + v * dv / (2.0 * (a * b).sqrt())).max(0.0);
+    a * (free - (s_star / gap.max(0.1)).powi(2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn speed_pid_brakes_and_accelerates() {
+        let mut i = 0.0;
+        let c = speed_control(&mut i, 5.0, 8.0, 0.05, 0.0);
+        assert!(c.throttle > 0.0 && c.brake == 0.0);
+        let c = speed_control(&mut i, 8.0, 5.0, 0.05, 0.0);
+        assert!(c.brake > 0.0 && c.throttle == 0.0);
+        let c = speed_control(&mut i, 0.0, 0.0, 0.05, 0.0);
+        assert_eq!(c.brake, 1.0);
+    }
+
+    #[test]
+    fn pursuit_steers_towards_the_route() {
+        let route = DenseRoute::new((0..50).map(|i| [i as f64, 0.0]).collect()).unwrap();
+        let bike = BicycleParams::default();
+        // Left of the route: steer right (positive).
+        let s = VehicleState {
+            x_m: 0.0,
+            y_m: 1.0,
+            yaw_rad: 0.0,
+            speed_mps: 5.0,
+        };
+        assert!(pursuit_steer(&s, &route, 0, &bike) > 0.0);
+        let s = VehicleState { y_m: -1.0, ..s };
+        assert!(pursuit_steer(&s, &route, 0, &bike) < 0.0);
+    }
+
+    #[test]
+    fn unstick_after_standing_still() {
+        let mut a = Baseline::new(AgentParams::default());
+        let route = DenseRoute::new((0..50).map(|i| [i as f64, 0.0]).collect()).unwrap();
+        let bike = BicycleParams::default();
+        let s = VehicleState::default();
+        let mut fired = None;
+        for k in 0..2000 {
+            let c = a.control(&s, &route, 0, 0.05, 0.0, &bike);
+            if c.throttle > 0.0 {
+                fired = Some(k);
+                break;
+            }
+        }
+        let k = fired.unwrap();
+        assert!((k as f64 * 0.05 - 55.0).abs() < 0.1, "{k}");
+        assert_eq!(a.unstick_count, 1);
+    }
+}

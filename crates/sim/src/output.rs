@@ -1,0 +1,378 @@
+//! Writing results: `results.json` (settings, summaries and every record), `records.jsonl`
+//! (one route record per line), `tables.md` (tables 1–3, the step-limit sweep, red-light
+//! behaviour, timing) and `closed_loop.json` (the report's closed-loop section). Files are
+//! written atomically (a temporary file, then a rename).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde_json::json;
+
+use crate::SimError;
+use crate::experiment::{ConfigSummary, Metrics, Results, Stat};
+use crate::sense::DeficitKind;
+
+/// The paths written.
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// `results.json`.
+    pub results: PathBuf,
+    /// `records.jsonl`.
+    pub records: PathBuf,
+    /// `tables.md`.
+    pub tables: PathBuf,
+    /// `closed_loop.json`.
+    pub closed_loop: PathBuf,
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SimError> {
+    let io = |source| SimError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// Writes every output file into `dir` (created if needed).
+pub fn write_all(results: &Results, dir: &Path) -> Result<Written, SimError> {
+    std::fs::create_dir_all(dir).map_err(|source| SimError::Io {
+        path: dir.display().to_string(),
+        source,
+    })?;
+    let w = Written {
+        results: dir.join("results.json"),
+        records: dir.join("records.jsonl"),
+        tables: dir.join("tables.md"),
+        closed_loop: dir.join("closed_loop.json"),
+    };
+    let json_err = |e: serde_json::Error| SimError::Params(format!("cannot serialise: {e}"));
+    let doc = json!({
+        "kind": "fogline.sim_results",
+        "schema_version": 1,
+        "params": results.params,
+        "summary": results.summary,
+        "wall_s": results.wall_s,
+        "threads": results.threads,
+        "records": results.records,
+    });
+    write_atomic(
+        &w.results,
+        serde_json::to_string_pretty(&doc)
+            .map_err(json_err)?
+            .as_bytes(),
+    )?;
+    let mut lines = String::new();
+    for r in &results.records {
+        lines.push_str(&serde_json::to_string(r).map_err(json_err)?);
+        lines.push('\n');
+    }
+    write_atomic(&w.records, lines.as_bytes())?;
+    write_atomic(&w.tables, markdown(results).as_bytes())?;
+    write_atomic(
+        &w.closed_loop,
+        serde_json::to_string_pretty(&closed_loop(results))
+            .map_err(json_err)?
+            .as_bytes(),
+    )?;
+    Ok(w)
+}
+
+/// The report's closed-loop document: one row per configuration (unlimited game time).
+pub fn closed_loop(results: &Results) -> serde_json::Value {
+    let rows: Vec<serde_json::Value> = results
+        .summary
+        .configs
+        .iter()
+        .map(|c| {
+            json!({
+                "configuration": c.config,
+                "n_routes": c.unlimited.runs,
+                "driving_score": c.unlimited.driving_score.by_route.mean,
+                "route_completion": c.unlimited.route_completion.by_route.mean,
+                "infraction_score": c.unlimited.infraction_score.by_route.mean,
+            })
+        })
+        .collect();
+    json!({
+        "source": format!(
+            "fogline sim {} — suite {}, {} route(s), seed(s) {:?}",
+            env!("CARGO_PKG_VERSION"),
+            results.params.suite.name,
+            results.params.suite.n_routes(),
+            results.params.seeds
+        ),
+        "configurations": rows,
+        "notes": notes(results),
+    })
+}
+
+fn notes(results: &Results) -> Vec<String> {
+    let p = &results.params;
+    let mut n: Vec<String> = results.warnings.clone();
+    n.extend([
+        "Leaderboard 1.0 scoring; red lights are not scored under the traffic-light deficit, nor stop signs under the stop-sign deficit (as in the paper).".to_string(),
+        "AS (average speed) = route length driven (RC/100 × length) / game time.".to_string(),
+        format!(
+            "The agent: the reference planner on front-wide ({:.0}°) and front-tele cameras at {}x{}, {} Hz, speed PID, pure pursuit on the route, unstick after 55 s.",
+            p.run.sensors.wide_fov_deg, p.run.sensors.width, p.run.sensors.height, p.run.sensors.agent_hz
+        ),
+    ]);
+    if p.seeds.len() < 2 {
+        n.push("± is the sample standard deviation over routes (one seed).".into());
+    } else {
+        n.push(format!(
+            "± is the sample standard deviation over the {} seeds' route means.",
+            p.seeds.len()
+        ));
+    }
+    for c in &results.summary.configs {
+        if c.fallbacks > 0 {
+            n.push(format!(
+                "{}: the RCO controller fell back to decelerate-to-stop {} time(s) (backend errors or rejected answers); see the records' rco.fallbacks.",
+                c.config, c.fallbacks
+            ));
+        }
+    }
+    n
+}
+
+fn ms(s: &Stat, prec: usize) -> String {
+    let m = s.shown();
+    if m.n == 0 {
+        return "-".into();
+    }
+    format!("{:.*} ± {:.*}", prec, m.mean, prec, m.std)
+}
+
+fn metric_rows(
+    out: &mut String,
+    label: &str,
+    cols: &[Option<&ConfigSummary>],
+    pick: &dyn Fn(&ConfigSummary) -> &Metrics,
+    with_as: bool,
+) {
+    let mut names = vec![("RC", 2usize), ("IS", 3), ("DS", 2)];
+    if with_as {
+        names.push(("AS", 2));
+    }
+    for (k, (name, prec)) in names.iter().enumerate() {
+        let first = if k == 0 { label } else { "" };
+        let _ = write!(out, "| {first} | {name} |");
+        for c in cols {
+            let cell = match c {
+                Some(c) => {
+                    let m = pick(c);
+                    let s = match *name {
+                        "RC" => &m.route_completion,
+                        "IS" => &m.infraction_score,
+                        "DS" => &m.driving_score,
+                        _ => &m.avg_speed_mps,
+                    };
+                    ms(s, *prec)
+                }
+                None => "-".into(),
+            };
+            let _ = write!(out, " {cell} |");
+        }
+        out.push('\n');
+    }
+}
+
+fn main_table(out: &mut String, results: &Results, limited: bool) {
+    let s = &results.summary;
+    let deficits: Vec<DeficitKind> = DeficitKind::ALL
+        .into_iter()
+        .filter(|k| s.configs.iter().any(|c| c.deficit == Some(*k)))
+        .collect();
+    if deficits.is_empty() && s.config("no_deficit").is_none() {
+        out.push_str("(no configuration of this table ran)\n");
+        return;
+    }
+    let _ = write!(out, "| Experiment | Metric |");
+    for k in &deficits {
+        let _ = write!(out, " {} |", title(*k));
+    }
+    out.push('\n');
+    out.push_str("|---|---|");
+    for _ in &deficits {
+        out.push_str("---|");
+    }
+    out.push('\n');
+    let pick: &dyn Fn(&ConfigSummary) -> &Metrics = if limited {
+        &|c| &c.system_limited
+    } else {
+        &|c| &c.unlimited
+    };
+    let none = s.config("no_deficit");
+    let row: Vec<Option<&ConfigSummary>> = deficits.iter().map(|_| none).collect();
+    metric_rows(out, "No deficit", &row, pick, !limited);
+    let row: Vec<Option<&ConfigSummary>> = deficits
+        .iter()
+        .map(|k| s.config(&format!("{}/no_rco", k.name())))
+        .collect();
+    metric_rows(out, "Deficit, no RCO", &row, pick, !limited);
+    let row: Vec<Option<&ConfigSummary>> = deficits
+        .iter()
+        .map(|k| s.config(&format!("{}/rco", k.name())))
+        .collect();
+    metric_rows(out, "Deficit, RCO", &row, pick, !limited);
+}
+
+fn title(k: DeficitKind) -> &'static str {
+    match k {
+        DeficitKind::TrafficLight => "Traffic light",
+        DeficitKind::StopSign => "Stop sign",
+        DeficitKind::Pedestrian => "Pedestrian",
+        DeficitKind::Bicycle => "Bicycle",
+    }
+}
+
+/// The Markdown tables.
+pub fn markdown(results: &Results) -> String {
+    let p = &results.params;
+    let s = &results.summary;
+    let mut out = String::new();
+    let _ = writeln!(out, "# Closed-loop evaluation (`fogline sim run`)\n");
+    let _ = writeln!(
+        out,
+        "Suite `{}`: {} route(s), seed(s) {:?}; RCO backend {}; system-time limit {:.0} s with {}.\n",
+        p.suite.name,
+        p.suite.n_routes(),
+        p.seeds,
+        p.configs
+            .iter()
+            .find_map(|c| c.rco.as_ref().map(|r| r.backend.describe()))
+            .unwrap_or_else(|| "-".into()),
+        p.system_time_limit_s,
+        match p.llm_latency_ms {
+            Some(ms) => format!("{ms:.0} ms counted per LLM call"),
+            None => "the measured LLM latency".into(),
+        }
+    );
+    for n in notes(results) {
+        let _ = writeln!(out, "- {n}");
+    }
+    out.push('\n');
+    out.push_str("## Table 1: unlimited game time (each route's own timeout only)\n\n");
+    main_table(&mut out, results, false);
+    out.push_str("\n## Table 2: with the system-time limit\n\n");
+    main_table(&mut out, results, true);
+    let ablation: Vec<&ConfigSummary> = s
+        .configs
+        .iter()
+        .filter(|c| c.deficit == Some(DeficitKind::Bicycle) && c.plan_limit.is_none_or(|l| l == 5))
+        .collect();
+    if ablation.len() > 2 {
+        out.push_str("\n## Table 3: module ablation (bicycle deficit, system-time limit)\n\n");
+        out.push_str("| HI | ST | AV | SC | RC | IS | DS | RC (unlimited) | IS (unlimited) | DS (unlimited) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+        for c in &ablation {
+            let m = c.rco_modules.clone().unwrap_or_else(|| "no RCO".into());
+            let on = |k: &str| {
+                if m.split('+').any(|x| x == k) {
+                    "✓"
+                } else {
+                    "✗"
+                }
+            };
+            let (hi, st, av, sc) = if c.rco_modules.is_none() {
+                ("-", "-", "-", "-")
+            } else {
+                (on("HI"), on("ST"), on("AV"), on("SC"))
+            };
+            let l = &c.system_limited;
+            let u = &c.unlimited;
+            let _ = writeln!(
+                out,
+                "| {hi} | {st} | {av} | {sc} | {} | {} | {} | {} | {} | {} |",
+                ms(&l.route_completion, 2),
+                ms(&l.infraction_score, 3),
+                ms(&l.driving_score, 2),
+                ms(&u.route_completion, 2),
+                ms(&u.infraction_score, 3),
+                ms(&u.driving_score, 2)
+            );
+        }
+    }
+    if !s.sweep.is_empty() {
+        out.push_str("\n## Figure 8: planning step limit (change against the same deficit without RCO; means over routes)\n\n");
+        out.push_str("| Deficit | Step limit | ΔRC | ΔIS | ΔDS | ΔRC (unlimited) | ΔIS (unlimited) | ΔDS (unlimited) |\n|---|---|---|---|---|---|---|---|\n");
+        for r in &s.sweep {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {:+.2} | {:+.3} | {:+.2} | {:+.2} | {:+.3} | {:+.2} |",
+                title(r.deficit),
+                r.plan_limit,
+                r.delta_limited[0],
+                r.delta_limited[1],
+                r.delta_limited[2],
+                r.delta_unlimited[0],
+                r.delta_unlimited[1],
+                r.delta_unlimited[2]
+            );
+        }
+    }
+    out.push_str("\n## Red-light behaviour on the routes' signalised approaches\n\n");
+    out.push_str("Counted also where the scoring excludes red lights.\n\n");
+    out.push_str("| Configuration | Approaches | Red encounters | Stopped at red | Stop rate | Red-light infractions | per km |\n|---|---|---|---|---|---|---|\n");
+    for c in &s.configs {
+        let g = &c.signals;
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {:.2} |",
+            c.config,
+            g.approaches,
+            g.red_encounters,
+            g.stopped_at_red,
+            g.stop_rate
+                .map_or("-".into(), |r| format!("{:.1} %", 100.0 * r)),
+            g.red_light_infractions,
+            g.red_lights_per_km
+        );
+    }
+    out.push_str("\n## Runs\n\n");
+    out.push_str("| Configuration | Runs | Deficit present | RCO drove | LLM calls | ms/call | Fallbacks | Terminations | Infractions per km |\n|---|---|---|---|---|---|---|---|---|\n");
+    for c in &s.configs {
+        let term: Vec<String> = c
+            .terminations
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect();
+        let inf: Vec<String> = c
+            .infractions_per_km
+            .iter()
+            .filter(|(k, _)| !k.ends_route())
+            .map(|(k, v)| format!("{} {:.2}", k.name(), v))
+            .collect();
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {} | {} |",
+            c.config,
+            c.unlimited.runs,
+            100.0 * c.deficit_share,
+            100.0 * c.takeover_share,
+            c.llm_calls,
+            c.llm_ms_per_call.map_or("-".into(), |m| format!("{m:.3}")),
+            c.fallbacks,
+            term.join(", "),
+            if inf.is_empty() {
+                "-".into()
+            } else {
+                inf.join(", ")
+            }
+        );
+    }
+    out.push_str("\n## Timing (wall clock; not part of the results)\n\n");
+    let _ = writeln!(
+        out,
+        "{} runs in {:.1} s on {} thread(s); the runs with a deficit took {:.1} s of worker time ({:.1} s on {} threads).",
+        results.records.len(),
+        results.wall_s,
+        results.threads,
+        s.deficit_runs_wall_s,
+        s.deficit_runs_wall_s / results.threads.max(1) as f64,
+        results.threads
+    );
+    out
+}

@@ -1,0 +1,1032 @@
+//! One route under one configuration: the closed loop at 20 Hz.
+//!
+//! Every tick (50 ms of game time): the agent's planning step when due (5 Hz by default:
+//! render the front-wide and front-tele frames, apply the weather and the deficit, run the
+//! planner), the RCO controller's step when due (10 Hz) and a deficit is present in the
+//! agent's frames, the control (RCO's while it has taken over, else the baseline's), the
+//! bicycle model, the traffic (10 Hz), then every Leaderboard 1.0 criterion.
+//!
+//! **Frame spacing.** The reference planner reads motion from its last four frames, which it
+//! takes to be 0.1 s apart. At an agent rate below 10 Hz the frames are `1/rate` apart; the
+//! planner is given the ego history at the same spacing and the ego speed scaled by
+//! `0.1 s · rate⁻¹ / 0.1 s`, i.e. it sees a consistently time-lapsed world; the agent scales
+//! the perceived speeds back (distances are unaffected). At 10 Hz nothing is scaled.
+//!
+//! **Time.** Game time advances 50 ms per tick. System time is game time plus the time the
+//! agents' queries cost: the RCO backend's measured latency, or a configured latency per
+//! LLM call. The run records a timeline (every 0.5 s of game time: route completion, LLM
+//! calls, measured latency) and every event's game time, so any game- or system-time limit
+//! can be applied afterwards ([`RouteRecord::limited`]): ending a run at a time limit does
+//! not change what happened before it.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::sync::Arc;
+use std::time::Instant;
+
+use fogline_perturb::frame::{Frame, FrameKey, ObjectBox};
+use fogline_rco::{
+    EgoState, NavDirection, Navigation, Observation, PixelBox, Rco, RoadGeometry, RoadLayout,
+    Surroundings, TrafficEnv, TrafficObject, View,
+};
+use fogline_types::clip::{CameraCalib, CameraId, CameraInput, EgoPose};
+use serde::{Deserialize, Serialize};
+
+use crate::SimError;
+use crate::agent::{AgentInput, AgentParams, Baseline};
+use crate::config::Config;
+use crate::geom::{Obb, dist, dot, sub};
+use crate::route::Route;
+use crate::score::{
+    BlockedMonitor, CollisionFilter, Event, EventKind, OutsideLanesMonitor, RedLightMonitor,
+    RouteCompletion, RouteDeviationMonitor, RouteScore, ScoringParams, StopSignMonitor, TimeLimits,
+    route_timeout_s,
+};
+use crate::sense::{Daylight, Lens, PartsCache, Seen, Weather, look, scene_at, see};
+use crate::town::{Control, LANE_W_M, Light, Town, ZONE_M};
+use crate::traffic::{EgoView, Traffic, TrafficParams, ego_box};
+use crate::vehicle::{BicycleParams, VehicleControl, VehicleState, step as bike_step};
+
+/// Cameras and rates.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorParams {
+    /// Image width of every camera, px.
+    pub width: u32,
+    /// Image height, px.
+    pub height: u32,
+    /// Horizontal field of view of the front-wide camera, degrees (the cross cameras keep
+    /// 120°, the telephoto 30°).
+    pub wide_fov_deg: f64,
+    /// Agent steps per second (frames, planner, RCO); divides 20.
+    pub agent_hz: f64,
+    /// Image width of the cross cameras (the RCO controller's side views), px (height
+    /// keeps the aspect ratio).
+    pub side_width: u32,
+    /// Image width of the telephoto camera, px (height keeps the aspect ratio).
+    pub tele_width: u32,
+}
+
+impl SensorParams {
+    /// Width of the telephoto camera.
+    pub fn tele_width(&self) -> u32 {
+        self.tele_width.clamp(32, 1920)
+    }
+
+    /// Height of the telephoto camera.
+    pub fn tele_height(&self) -> u32 {
+        ((f64::from(self.tele_width()) * f64::from(self.height) / f64::from(self.width)).round()
+            as u32)
+            .clamp(24, 1080)
+    }
+
+    /// Width of the side views.
+    pub fn side_width(&self) -> u32 {
+        self.side_width.clamp(32, self.width.max(32))
+    }
+
+    /// Height of the side views.
+    pub fn side_height(&self) -> u32 {
+        ((f64::from(self.side_width()) * f64::from(self.height) / f64::from(self.width)).round()
+            as u32)
+            .max(24)
+    }
+}
+
+impl Default for SensorParams {
+    fn default() -> Self {
+        Self {
+            width: 192,
+            height: 144,
+            wide_fov_deg: 90.0,
+            agent_hz: 2.5,
+            side_width: 128,
+            tele_width: 256,
+        }
+    }
+}
+
+impl SensorParams {
+    /// Checks the sizes and rates.
+    pub fn validate(&self) -> Result<(), SimError> {
+        if !(32..=1920).contains(&self.width) || !(24..=1080).contains(&self.height) {
+            return Err(SimError::Params(format!(
+                "sensors: image size {}x{} must be within 32x24 ..= 1920x1080",
+                self.width, self.height
+            )));
+        }
+        let hz = self.agent_hz;
+        let every = TICK_HZ / hz;
+        if !(hz.is_finite() && hz > 0.0 && hz <= 10.0 && (every - every.round()).abs() < 1e-9) {
+            return Err(SimError::Params(format!(
+                "sensors.agent_hz = {hz}: must be at most 10 and divide the simulation rate of 20 Hz"
+            )));
+        }
+        if !(self.wide_fov_deg.is_finite() && (30.0..=150.0).contains(&self.wide_fov_deg)) {
+            return Err(SimError::Params(format!(
+                "sensors.wide_fov_deg = {}: must be within 30..=150",
+                self.wide_fov_deg
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Simulation ticks per second.
+pub const TICK_HZ: f64 = 20.0;
+/// The traffic is updated every this many ticks (5 Hz).
+const TRAFFIC_EVERY: u64 = 4;
+const DT: f64 = 1.0 / TICK_HZ;
+const FRAMES: usize = 4;
+/// Ego poses given to the planner: four, the fewest its motion estimate uses, so that its
+/// curvature estimate (first to last pose) follows the car through junction turns.
+const HISTORY: usize = 4;
+
+/// Everything a run needs besides the route and the configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RunParams {
+    /// Cameras and rates.
+    pub sensors: SensorParams,
+    /// The baseline agent.
+    pub agent: AgentParams,
+    /// The ego's dynamics.
+    pub bicycle: BicycleParams,
+    /// The traffic.
+    pub traffic: TrafficParams,
+    /// The stop-sign penalty factor (Leaderboard 1.0: 0.8; Longest6's fork: 1.0).
+    pub stop_sign_penalty: f64,
+}
+
+impl Default for RunParams {
+    fn default() -> Self {
+        Self {
+            sensors: SensorParams::default(),
+            agent: AgentParams::default(),
+            bicycle: BicycleParams::default(),
+            traffic: TrafficParams::default(),
+            stop_sign_penalty: 0.8,
+        }
+    }
+}
+
+/// A route to drive: the town it is in, the route, the weather and daylight, its seed.
+#[derive(Debug, Clone)]
+pub struct RouteCase {
+    /// Index in the suite.
+    pub id: usize,
+    /// Index of its town.
+    pub town: usize,
+    /// The route.
+    pub route: Route,
+    /// Weather.
+    pub weather: Weather,
+    /// Daylight.
+    pub daylight: Daylight,
+    /// Seed of its traffic.
+    pub seed: u64,
+}
+
+/// How the run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// The route was completed.
+    Completed,
+    /// Agent blocked.
+    AgentBlocked,
+    /// Route deviation.
+    RouteDeviation,
+    /// The route's timeout.
+    Timeout,
+    /// A game-time limit.
+    GameTimeLimit,
+    /// A system-time limit.
+    SystemTimeLimit,
+}
+
+impl Termination {
+    fn of(kind: EventKind) -> Self {
+        match kind {
+            EventKind::AgentBlocked => Self::AgentBlocked,
+            EventKind::RouteDeviation => Self::RouteDeviation,
+            EventKind::GameTimeLimit => Self::GameTimeLimit,
+            EventKind::SystemTimeLimit => Self::SystemTimeLimit,
+            _ => Self::Timeout,
+        }
+    }
+}
+
+/// What the ego did at the signals of its route.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct SignalStats {
+    /// Signalised approaches of the route the ego reached (its stop line crossed or the run
+    /// ended within 40 m of it).
+    pub approaches: u32,
+    /// Approaches where the light was red while the ego was within 40 m of the stop line.
+    pub red_encounters: u32,
+    /// Of those, approaches where the ego stood still before the line during red.
+    pub stopped_at_red: u32,
+    /// Stop lines crossed on red (the red-light infractions of the route's approaches).
+    pub crossed_on_red: u32,
+}
+
+/// The RCO controller's activity in a run.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RcoStats {
+    /// Its backend.
+    pub backend: String,
+    /// Ticks it controlled the car.
+    pub ticks: u64,
+    /// Take-over episodes.
+    pub episodes: u32,
+    /// LLM (backend) calls.
+    pub llm_calls: u64,
+    /// Measured backend latency, ms.
+    pub llm_latency_ms: f64,
+    /// Planning rounds.
+    pub replans: u64,
+    /// Refused condition-action pairs.
+    pub refusals: u64,
+    /// Fallbacks (decelerate to a stop and replan), by kind.
+    pub fallbacks: BTreeMap<String, u64>,
+    /// The first fallback's message, if any.
+    pub first_fallback: Option<String>,
+}
+
+impl RcoStats {
+    /// Total fallbacks.
+    pub fn fallbacks_total(&self) -> u64 {
+        self.fallbacks.values().sum()
+    }
+}
+
+/// Everything recorded about one run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RouteRecord {
+    /// The configuration's name.
+    pub config: String,
+    /// Route index in the suite.
+    pub route: usize,
+    /// Town index.
+    pub town: usize,
+    /// The seed of the run.
+    pub seed: u64,
+    /// Route length, m.
+    pub length_m: f64,
+    /// Weather.
+    pub weather: Weather,
+    /// Daylight.
+    pub daylight: Daylight,
+    /// Scores (with the route's own timeout, no experiment-wide limit).
+    pub score: RouteScore,
+    /// How it ended.
+    pub termination: Termination,
+    /// Game time, s.
+    pub game_time_s: f64,
+    /// System time with the measured latency, s.
+    pub system_time_s: f64,
+    /// Average speed: route length driven (RC/100 · length) over game time, m/s.
+    pub avg_speed_mps: f64,
+    /// Distance the ego drove, m.
+    pub odometer_m: f64,
+    /// Events in order (infractions, then the one that ended the route, if any).
+    pub events: Vec<Event>,
+    /// Signal behaviour.
+    pub signals: SignalStats,
+    /// Game time with a deficit present in the agent's frames, s.
+    pub deficit_s: f64,
+    /// Game time the RCO controller drove, s.
+    pub takeover_s: f64,
+    /// RCO activity (configurations with RCO).
+    pub rco: Option<RcoStats>,
+    /// Times the baseline's unstick rule fired.
+    pub unstick: u32,
+    /// Planner calls.
+    pub plans: u64,
+    /// Crossing events fired.
+    pub crossing_events: usize,
+    /// Every 0.5 s of game time: `[game s, route completion %, LLM calls, latency ms]`.
+    pub timeline: Vec<[f64; 4]>,
+    /// Wall-clock time of the run, s (not deterministic).
+    pub wall_s: f64,
+    /// Wall-clock time by part: scene + render + lens, planner, RCO, traffic, s (not
+    /// deterministic).
+    pub wall_parts_s: [f64; 4],
+}
+
+/// A time limit applied after the fact.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Limit {
+    /// Game-time limit, s.
+    pub game_time_s: Option<f64>,
+    /// System-time limit, s.
+    pub system_time_s: Option<f64>,
+    /// Latency counted per LLM call for system time, ms (`None`: the measured latency).
+    pub llm_latency_ms: Option<f64>,
+}
+
+impl Limit {
+    /// No experiment-wide limit.
+    pub const NONE: Limit = Limit {
+        game_time_s: None,
+        system_time_s: None,
+        llm_latency_ms: None,
+    };
+}
+
+impl RouteRecord {
+    /// Scores, events and termination as if the run had been limited by `limit`.
+    pub fn limited(
+        &self,
+        limit: &Limit,
+        scoring: &ScoringParams,
+    ) -> (RouteScore, Vec<Event>, Termination) {
+        let system = |p: &[f64; 4]| match limit.llm_latency_ms {
+            Some(ms) => p[0] + p[2] * ms / 1000.0,
+            None => p[0] + p[3] / 1000.0,
+        };
+        let cut = self.timeline.iter().position(|p| {
+            limit.game_time_s.is_some_and(|l| p[0] > l)
+                || limit.system_time_s.is_some_and(|l| system(p) > l)
+        });
+        let Some(k) = cut else {
+            return (self.score, self.events.clone(), self.termination);
+        };
+        let p = self.timeline[k];
+        let kind = if limit.game_time_s.is_some_and(|l| p[0] > l) {
+            EventKind::GameTimeLimit
+        } else {
+            EventKind::SystemTimeLimit
+        };
+        let t_cut = p[0];
+        // Route completion at the last sample within the limit.
+        let rc = if k == 0 { 0.0 } else { self.timeline[k - 1][1] };
+        let mut events: Vec<Event> = self
+            .events
+            .iter()
+            .filter(|e| e.t_s < t_cut && !e.kind.ends_route())
+            .cloned()
+            .collect();
+        events.push(Event::new(kind, t_cut, f64::NAN, f64::NAN));
+        for e in &mut events {
+            if e.x_m.is_nan() {
+                e.x_m = 0.0;
+                e.y_m = 0.0;
+            }
+        }
+        let score = RouteScore::of(rc, &events, scoring);
+        (score, events, Termination::of(kind))
+    }
+}
+
+struct SignalTrack {
+    node: usize,
+    din: usize,
+    s_line: f64,
+    reached: bool,
+    saw_red: bool,
+    stopped: bool,
+}
+
+/// Drives `case` under `config`: the closed loop until the route is completed or ended.
+pub fn run_route(
+    town: &Town,
+    case: &RouteCase,
+    config: &Config,
+    params: &RunParams,
+    seed: u64,
+) -> Result<RouteRecord, SimError> {
+    params.sensors.validate()?;
+    params.bicycle.validate()?;
+    let wall = Instant::now();
+    let route = &case.route;
+    let scoring = config.scoring(params.stop_sign_penalty);
+    scoring.validate()?;
+    let lens = Lens::new(case.weather, config.deficit)?;
+    let lk = look(case.weather, case.daylight);
+    let cache = PartsCache::new(town);
+    let run_seed = fogline_stats::seed::child(seed, &[case.seed, 0x5151]);
+    let mut traffic = Traffic::new(town, route, params.traffic, run_seed);
+    let mut rco: Option<Rco> = match &config.rco {
+        Some(setup) => Some(setup.build(params.sensors.agent_hz)?),
+        None => None,
+    };
+    let mut rco_stats = config.rco.as_ref().map(|s| RcoStats {
+        backend: s.backend.describe(),
+        ..RcoStats::default()
+    });
+    let (p0, u0) = route.pose(0.0);
+    let mut ego = VehicleState {
+        x_m: p0[0],
+        y_m: p0[1],
+        yaw_rad: u0[1].atan2(u0[0]),
+        speed_mps: 0.0,
+    };
+    let s = &params.sensors;
+    let mut wide = CameraCalib::standard(CameraId::FrontWide, s.width, s.height);
+    wide.fx = f64::from(s.width) / 2.0 / (s.wide_fov_deg.to_radians() / 2.0).tan();
+    wide.fy = wide.fx;
+    let tele = CameraCalib::standard(CameraId::FrontTele, s.tele_width(), s.tele_height());
+    let (sw, sh) = (s.side_width(), s.side_height());
+    let left = CameraCalib::standard(CameraId::CrossLeft, sw, sh);
+    let right = CameraCalib::standard(CameraId::CrossRight, sw, sh);
+    let agent_every = (TICK_HZ / s.agent_hz).round() as u64;
+    let speed_scale = (1.0 / s.agent_hz) / 0.1;
+    let mut agent = Baseline::new(params.agent);
+    let mut wide_frames: VecDeque<Frame> = VecDeque::new();
+    let mut tele_frames: VecDeque<Frame> = VecDeque::new();
+    let mut history: VecDeque<VehicleState> = VecDeque::new();
+    // Criteria.
+    let mut completion = RouteCompletion::new();
+    let mut deviation = RouteDeviationMonitor::new();
+    let mut blocked = BlockedMonitor::default();
+    let limits = TimeLimits {
+        route_timeout_s: route_timeout_s(route.length_m()),
+        game_time_limit_s: None,
+        system_time_limit_s: None,
+    };
+    let mut collisions = CollisionFilter::new();
+    let mut red = RedLightMonitor::new();
+    let mut stops = StopSignMonitor::new();
+    let mut outside = OutsideLanesMonitor::new();
+    let mut events: Vec<Event> = Vec::new();
+    let mut signals: Vec<SignalTrack> = route
+        .junctions
+        .iter()
+        .filter(|j| j.control == Control::Signal)
+        .map(|j| SignalTrack {
+            node: j.node,
+            din: j.din,
+            s_line: j.s_stop_line_m,
+            reached: false,
+            saw_red: false,
+            stopped: false,
+        })
+        .collect();
+    let mut rco_control: Option<VehicleControl> = None;
+    let mut deficit_agent = false;
+    let mut deficit_side = false;
+    let mut last_deficit_t = f64::NEG_INFINITY;
+    let mut rco_active = false;
+    let mut rco_tick: u64 = 0;
+    let mut timeline: Vec<[f64; 4]> = Vec::new();
+    let mut t = 0.0f64;
+    let mut tick: u64 = 0;
+    let mut odometer = 0.0;
+    let mut deficit_s = 0.0;
+    let mut takeover_s = 0.0;
+    let mut prev_speed = 0.0;
+    let mut prev_yaw = ego.yaw_rad;
+    let mut tail_prev = ego.point(-1.2, 0.0);
+    let mut route_s = 0.0f64;
+    let mut termination = None;
+    let mut llm_calls = 0u64;
+    let mut llm_ms = 0.0f64;
+    let mut parts = [0.0f64; 4];
+    let mut was_idle = false;
+    loop {
+        // ---- Sensing, the agent and the RCO take-over --------------------------------------
+        let clock = Instant::now();
+        // Standing still with nothing to do, the agent looks four times less often.
+        let idle = !rco_active
+            && ego.speed_mps < 0.05
+            && agent.target_now(odometer) < 0.05
+            && !agent.unsticking();
+        let every = if idle { 4 * agent_every } else { agent_every };
+        if idle != was_idle {
+            // The planner's frames must be evenly spaced: start the series again.
+            wide_frames.clear();
+            tele_frames.clear();
+            history.clear();
+            was_idle = idle;
+        }
+        if tick.is_multiple_of(every) {
+            let sc = scene_at(town, &traffic, &cache, &ego, t, lk);
+            let key = |cam: CameraId| FrameKey::new(case.id as u64, cam.index() as u64, tick);
+            let w = see(&sc, &wide, &lens, key(CameraId::FrontWide));
+            let te = see(&sc, &tele, &lens, key(CameraId::FrontTele));
+            deficit_agent = !w.deficits.is_empty() || !te.deficits.is_empty();
+            push_frame(&mut wide_frames, w.frame.clone());
+            push_frame(&mut tele_frames, te.frame);
+            history.push_back(ego);
+            while history.len() > HISTORY {
+                history.pop_front();
+            }
+            parts[0] += clock.elapsed().as_secs_f64();
+            let present = deficit_agent || (rco_active && deficit_side);
+            match rco.as_mut() {
+                Some(ctl) if present => {
+                    let clock = Instant::now();
+                    if !rco_active {
+                        if t - last_deficit_t > 1.0 {
+                            ctl.reset();
+                        }
+                        rco_active = true;
+                        if let Some(st) = rco_stats.as_mut() {
+                            st.episodes += 1;
+                        }
+                    }
+                    let views_seen = [
+                        (
+                            CameraId::CrossLeft,
+                            see(&sc, &left, &lens, key(CameraId::CrossLeft)),
+                        ),
+                        (CameraId::FrontWide, w),
+                        (
+                            CameraId::CrossRight,
+                            see(&sc, &right, &lens, key(CameraId::CrossRight)),
+                        ),
+                    ];
+                    deficit_side = views_seen.iter().any(|(_, v)| !v.deficits.is_empty());
+                    let obs = observation(
+                        rco_tick,
+                        &views_seen,
+                        &ego,
+                        prev_speed,
+                        prev_yaw,
+                        1.0 / s.agent_hz,
+                        route,
+                        route_s,
+                        town,
+                        &traffic,
+                        case,
+                        agent.intent().lead_gap_m,
+                    );
+                    rco_tick += 1;
+                    let d = ctl.step(&obs);
+                    if log::log_enabled!(log::Level::Trace) {
+                        log::trace!("rco t {t:.1} v {:.2}: {}", ego.speed_mps, d.summary());
+                    }
+                    if let Some(st) = rco_stats.as_mut() {
+                        st.llm_calls += u64::from(d.counters.llm_calls);
+                        st.llm_latency_ms += d.counters.llm_latency_ms;
+                        llm_calls += u64::from(d.counters.llm_calls);
+                        llm_ms += d.counters.llm_latency_ms;
+                        st.replans += u64::from(d.replanned);
+                        st.refusals += u64::from(d.refusal.is_some());
+                        if let Some(f) = &d.fallback {
+                            let kind = serde_json::to_value(f.kind)
+                                .ok()
+                                .and_then(|v| v.as_str().map(str::to_string))
+                                .unwrap_or_else(|| "fallback".into());
+                            *st.fallbacks.entry(kind).or_default() += 1;
+                            if st.first_fallback.is_none() {
+                                st.first_fallback = Some(f.message.clone());
+                            }
+                        }
+                    }
+                    rco_control = Some(VehicleControl {
+                        throttle: d.control.throttle,
+                        brake: d.control.brake,
+                        steer: d.control.steer,
+                    });
+                    parts[2] += clock.elapsed().as_secs_f64();
+                }
+                _ => {
+                    rco_active = false;
+                    rco_control = None;
+                    deficit_side = false;
+                    let clock = Instant::now();
+                    let hist =
+                        rig_history(&history, speed_scale, route_kappa(route, route_s, &ego));
+                    let turn_cap = turn_cap(route, route_s, &params.agent);
+                    let cams = vec![
+                        CameraInput {
+                            calib: wide,
+                            frames: wide_frames.iter().map(|f| f.data()).collect(),
+                        },
+                        CameraInput {
+                            calib: tele,
+                            frames: tele_frames.iter().map(|f| f.data()).collect(),
+                        },
+                    ];
+                    agent.plan(
+                        AgentInput {
+                            cameras: cams,
+                            history: &hist,
+                        },
+                        ego.speed_mps,
+                        turn_cap,
+                        odometer,
+                        speed_scale,
+                    );
+                    parts[1] += clock.elapsed().as_secs_f64();
+                }
+            }
+            prev_speed = ego.speed_mps;
+            prev_yaw = ego.yaw_rad;
+        }
+        if deficit_agent || (rco_active && deficit_side) {
+            deficit_s += DT;
+            last_deficit_t = t;
+        }
+        // ---- Control and dynamics -------------------------------------------------------
+        let control = match (rco_active, rco_control) {
+            (true, Some(c)) => {
+                takeover_s += DT;
+                if let Some(st) = rco_stats.as_mut() {
+                    st.ticks += 1;
+                }
+                c
+            }
+            _ => agent.control(
+                &ego,
+                &route.dense,
+                completion.index(),
+                DT,
+                odometer,
+                &params.bicycle,
+            ),
+        };
+        let before = ego;
+        ego = bike_step(&params.bicycle, &ego, control);
+        odometer += dist([before.x_m, before.y_m], [ego.x_m, ego.y_m]);
+        t += DT;
+        tick += 1;
+        let ev = EgoView {
+            state: ego,
+            route_s_m: route_s,
+        };
+        let clock = Instant::now();
+        if tick.is_multiple_of(TRAFFIC_EVERY) {
+            traffic.step(town, route, &ev, t, TRAFFIC_EVERY as f64 * DT);
+        }
+        if tick.is_multiple_of(20) {
+            traffic.refill(town, route, &ev);
+        }
+        parts[3] += clock.elapsed().as_secs_f64();
+        // ---- Criteria -------------------------------------------------------------------
+        let pos = [ego.x_m, ego.y_m];
+        let rc = completion.update(&route.dense, pos);
+        route_s = route.dense.accum[completion.index()];
+        let ebox = ego_box(&ego);
+        collisions.tick(ebox.c);
+        for n in &traffic.npcs {
+            if dist(n.pos, ebox.c) < 8.0
+                && ebox.overlaps(&n.obb())
+                && collisions.contact(n.id, n.pos, t)
+            {
+                let mut e = Event::new(EventKind::CollisionVehicle, t, n.pos[0], n.pos[1]);
+                e.actor = Some(n.id);
+                events.push(e);
+            }
+        }
+        for w in &traffic.walkers {
+            if dist(w.pos, ebox.c) < 6.0
+                && ebox.overlaps(&w.obb())
+                && collisions.contact(w.id, w.pos, t)
+            {
+                // A bicycle is a vehicle in CARLA; a walker is a pedestrian.
+                let kind = if w.cyclist {
+                    EventKind::CollisionVehicle
+                } else {
+                    EventKind::CollisionPedestrian
+                };
+                let mut e = Event::new(kind, t, w.pos[0], w.pos[1]);
+                e.actor = Some(w.id);
+                events.push(e);
+            }
+        }
+        for (k, b) in town.buildings.iter().enumerate() {
+            if dist(b.obb.c, ebox.c) < b.obb.hl + 6.0
+                && ebox.overlaps(&b.obb)
+                && collisions.contact(500_000 + k as u64, pos, t)
+            {
+                events.push(Event::new(EventKind::CollisionLayout, t, pos[0], pos[1]));
+            }
+        }
+        for (id, p, r) in town
+            .lights
+            .iter()
+            .map(|l| (l.id, l.pos, 0.15))
+            .chain(town.signs.iter().map(|s| (s.id, s.pos, 0.1)))
+        {
+            if dist(p, ebox.c) < 5.0 && ebox.overlaps_disc(p, r) && collisions.contact(id, p, t) {
+                events.push(Event::new(EventKind::CollisionLayout, t, p[0], p[1]));
+            }
+        }
+        // Red lights: every signalised approach near the ego.
+        let tail = ego.point(-1.2, 0.0);
+        for l in &town.lights {
+            let line = town.stop_line(l.node, l.din);
+            if dist(line.centre(), tail) > 20.0 {
+                continue;
+            }
+            let is_red = town.light(l.node, l.din, t) == Light::Red;
+            if red.check(l.id, &line, is_red, tail_prev, tail, ego.heading()) {
+                events.push(Event::new(EventKind::RedLight, t, pos[0], pos[1]));
+            }
+        }
+        tail_prev = tail;
+        // Stop signs: the front bumper inside an approach's area (6 m before the line to
+        // 2 m past it, across the lane).
+        let front = ego.point(3.7, 0.0);
+        let area = town.signs.iter().find_map(|sg| {
+            let c = town.stop_line_centre(sg.node, sg.din);
+            let u = crate::town::DIRS[sg.din];
+            let d = sub(front, c);
+            let along = dot(d, u);
+            let across = -u[1] * d[0] + u[0] * d[1];
+            ((-6.0..=2.0).contains(&along) && across.abs() <= LANE_W_M / 2.0).then_some(sg.id)
+        });
+        if let Some(id) = stops.update(area, ego.speed_mps) {
+            let mut e = Event::new(EventKind::StopSign, t, pos[0], pos[1]);
+            e.actor = Some(id);
+            events.push(e);
+        }
+        // Signal behaviour on the route's approaches.
+        for sg in &mut signals {
+            let before_line = sg.s_line - route_s;
+            if (0.0..=40.0).contains(&before_line) {
+                sg.reached = true;
+                let is_red = town.light(sg.node, sg.din, t) == Light::Red;
+                sg.saw_red |= is_red;
+                sg.stopped |= is_red && ego.speed_mps < 0.1;
+            }
+        }
+        // Outside the route's lanes: more than 2.5 m from the route's lane centre.
+        let (_, lat) = route
+            .path
+            .project(pos, (route_s - 5.0).max(0.0), route_s + 10.0);
+        outside.update(&route.dense, completion.index(), lat.abs() > 2.5);
+        if tick.is_multiple_of(10) {
+            timeline.push([t, rc, llm_calls as f64, llm_ms]);
+        }
+        if tick.is_multiple_of(20) && log::log_enabled!(log::Level::Trace) {
+            let i = agent.intent();
+            log::trace!(
+                "t {t:6.1} s {route_s:7.1} lat {:+.2} dyaw {:+.2} v {:5.2} target {:5.2} {:?} deficit {} rco {} ctl {:.2}/{:.2}/{:+.2} | {}",
+                route
+                    .path
+                    .project(pos, (route_s - 5.0).max(0.0), route_s + 10.0)
+                    .1,
+                {
+                    let (_, u) = route.pose(route_s);
+                    crate::vehicle::wrap_angle(ego.yaw_rad - u[1].atan2(u[0]))
+                },
+                ego.speed_mps,
+                i.target_mps,
+                i.decision,
+                deficit_agent,
+                rco_active,
+                control.throttle,
+                control.brake,
+                control.steer,
+                agent.debug
+            );
+        }
+        // ---- Termination ----------------------------------------------------------------
+        if completion.completed() {
+            termination = Some(Termination::Completed);
+        } else if blocked.update(t, ego.speed_mps) {
+            events.push(Event::new(EventKind::AgentBlocked, t, pos[0], pos[1]));
+            termination = Some(Termination::AgentBlocked);
+        } else if deviation.update(&route.dense, pos) {
+            events.push(Event::new(EventKind::RouteDeviation, t, pos[0], pos[1]));
+            termination = Some(Termination::RouteDeviation);
+        } else if let Some(kind) = limits.check(t, t + llm_ms / 1000.0) {
+            events.push(Event::new(kind, t, pos[0], pos[1]));
+            termination = Some(Termination::of(kind));
+        }
+        if termination.is_some() {
+            break;
+        }
+    }
+    timeline.push([t, completion.percent(), llm_calls as f64, llm_ms]);
+    let pct = outside.percent(&route.dense);
+    if pct > 0.0 {
+        let mut e = Event::new(EventKind::OutsideRouteLanes, t, ego.x_m, ego.y_m);
+        e.percent = Some(pct);
+        // Before the terminating event, if any (infractions first).
+        let at = events
+            .iter()
+            .position(|e| e.kind.ends_route())
+            .unwrap_or(events.len());
+        events.insert(at, e);
+    }
+    let rc = completion.percent();
+    let score = RouteScore::of(rc, &events, &scoring);
+    let mut sig = SignalStats::default();
+    for sg in &signals {
+        if sg.reached {
+            sig.approaches += 1;
+            sig.red_encounters += u32::from(sg.saw_red);
+            sig.stopped_at_red += u32::from(sg.saw_red && sg.stopped);
+        }
+    }
+    sig.crossed_on_red = events
+        .iter()
+        .filter(|e| e.kind == EventKind::RedLight)
+        .count() as u32;
+    Ok(RouteRecord {
+        config: config.name.clone(),
+        route: case.id,
+        town: case.town,
+        seed,
+        length_m: route.length_m(),
+        weather: case.weather,
+        daylight: case.daylight,
+        score,
+        termination: termination.unwrap_or(Termination::Timeout),
+        game_time_s: t,
+        system_time_s: t + llm_ms / 1000.0,
+        avg_speed_mps: rc / 100.0 * route.length_m() / t.max(1e-9),
+        odometer_m: odometer,
+        events,
+        signals: sig,
+        deficit_s,
+        takeover_s,
+        rco: rco_stats,
+        unstick: agent.unstick_count,
+        plans: agent.plans,
+        crossing_events: traffic.events_fired(),
+        timeline,
+        wall_s: wall.elapsed().as_secs_f64(),
+        wall_parts_s: parts,
+    })
+}
+
+fn push_frame(q: &mut VecDeque<Frame>, f: Frame) {
+    q.push_back(f);
+    while q.len() > FRAMES {
+        q.pop_front();
+    }
+}
+
+/// The ego history in the rig frame now, oldest first, at the agent's spacing (labelled
+/// 0.1 s apart, speeds scaled by `speed_scale`). Positions are the true ones; the headings
+/// carry the navigation: the planner reads its path curvature from the history (first to
+/// last heading over the path length), so the headings are set to the curvature of the arc
+/// that reaches the route [`NAV_AHEAD_M`] ahead — the baseline's only route input besides
+/// the steering target, as TransFuser is conditioned on its target point.
+fn rig_history(h: &VecDeque<VehicleState>, speed_scale: f64, nav_kappa: f64) -> Vec<EgoPose> {
+    let Some(now) = h.back() else {
+        return Vec::new();
+    };
+    let (s, c) = now.yaw_rad.sin_cos();
+    let n = h.len();
+    // Path length from each pose to the last.
+    let mut to_end = vec![0.0; n];
+    for k in (0..n.saturating_sub(1)).rev() {
+        let (a, b) = (&h[k], &h[k + 1]);
+        to_end[k] = to_end[k + 1] + (b.x_m - a.x_m).hypot(b.y_m - a.y_m);
+    }
+    h.iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let (dx, dy) = (p.x_m - now.x_m, p.y_m - now.y_m);
+            EgoPose {
+                t_s: -0.1 * (n - 1 - k) as f64,
+                x_m: c * dx + s * dy,
+                y_m: -s * dx + c * dy,
+                yaw_rad: -nav_kappa * to_end[k],
+                speed_mps: p.speed_mps * speed_scale,
+            }
+        })
+        .collect()
+}
+
+/// Distance to the route point the navigation curvature aims at, m.
+pub const NAV_AHEAD_M: f64 = 8.0;
+
+/// The curvature of the arc from the ego (its heading) to the route point
+/// [`NAV_AHEAD_M`] ahead (pure pursuit; 1/m, left positive).
+fn route_kappa(route: &Route, s: f64, ego: &VehicleState) -> f64 {
+    let (p, _) = route.pose(s + NAV_AHEAD_M);
+    let h = ego.heading();
+    let d = sub(p, [ego.x_m, ego.y_m]);
+    let x = dot(d, h);
+    let y = -h[1] * d[0] + h[0] * d[1];
+    2.0 * y / (x * x + y * y).max(1.0)
+}
+
+/// The speed cap before the route's next turn.
+fn turn_cap(route: &Route, s: f64, p: &AgentParams) -> f64 {
+    let Some(j) = route.next_junction(s) else {
+        return f64::INFINITY;
+    };
+    let v_turn = match j.turn() {
+        1 => p.left_turn_mps,
+        3 => p.right_turn_mps,
+        _ => return f64::INFINITY,
+    };
+    let d = (j.s_entry_m - s).max(0.0);
+    (v_turn * v_turn + 2.0 * p.turn_decel_mps2 * d).sqrt()
+}
+
+/// The RCO observation of this tick.
+#[allow(clippy::too_many_arguments)]
+fn observation(
+    tick: u64,
+    views: &[(CameraId, Seen)],
+    ego: &VehicleState,
+    prev_speed: f64,
+    prev_yaw: f64,
+    dt: f64,
+    route: &Route,
+    route_s: f64,
+    town: &Town,
+    traffic: &Traffic,
+    case: &RouteCase,
+    lead_gap: Option<f64>,
+) -> Observation {
+    let mk_view = |cam: CameraId, seen: &Seen| {
+        let hidden: Vec<Option<u64>> = seen.deficits.iter().map(|d| d.track_id).collect();
+        View {
+            camera: cam,
+            width: seen.frame.width(),
+            height: seen.frame.height(),
+            rgb: Some(Arc::from(seen.frame.data())),
+            deficits: seen
+                .deficits
+                .iter()
+                .map(|d| {
+                    PixelBox::new(
+                        f64::from(d.rect.x0),
+                        f64::from(d.rect.y0),
+                        f64::from(d.rect.x1 - d.rect.x0),
+                        f64::from(d.rect.y1 - d.rect.y0),
+                    )
+                })
+                .collect(),
+            objects: seen
+                .boxes
+                .iter()
+                .filter(|b| traffic_class(b) && !hidden.contains(&b.track_id))
+                .map(|b| TrafficObject {
+                    class: b.class.clone(),
+                    track_id: b.track_id,
+                    rect: PixelBox::new(b.x_px, b.y_px, b.width_px, b.height_px),
+                })
+                .collect(),
+        }
+    };
+    let (target, _) = route.pose(route_s + 10.0);
+    let h = ego.heading();
+    let d = sub(target, [ego.x_m, ego.y_m]);
+    let direction = match route.next_junction(route_s) {
+        Some(j) if j.s_entry_m - route_s < 25.0 => match j.turn() {
+            1 => NavDirection::Left,
+            3 => NavDirection::Right,
+            _ => NavDirection::Straight,
+        },
+        _ => NavDirection::FollowLane,
+    };
+    let near_node = town
+        .nodes
+        .iter()
+        .any(|n| dist(n.pos, [ego.x_m, ego.y_m]) < ZONE_M + 2.0);
+    let pos = [ego.x_m, ego.y_m];
+    let density = traffic
+        .npcs
+        .iter()
+        .filter(|n| n.speed_mps > 0.1 && dist(n.pos, pos) < 50.0)
+        .count()
+        + traffic
+            .walkers
+            .iter()
+            .filter(|w| w.speed_mps > 0.1 && dist(w.pos, pos) < 50.0)
+            .count();
+    Observation {
+        tick,
+        views: views.iter().map(|(c, s)| mk_view(*c, s)).collect(),
+        ego: EgoState {
+            speed_mps: ego.speed_mps,
+            accel_x_mps2: (ego.speed_mps - prev_speed) / dt,
+            yaw_rate_rps: crate::vehicle::wrap_angle(ego.yaw_rad - prev_yaw) / dt,
+            follow_distance_m: lead_gap,
+        },
+        navigation: Navigation {
+            direction,
+            target_x_m: dot(d, h),
+            target_y_m: -h[1] * d[0] + h[0] * d[1],
+            road: RoadGeometry {
+                layout: if near_node {
+                    RoadLayout::Junction
+                } else {
+                    RoadLayout::Straight
+                },
+                two_way: true,
+                lanes: 1,
+            },
+        },
+        surroundings: Surroundings {
+            weather: case.weather.rco(),
+            daylight: case.daylight.rco(),
+            traffic_env: TrafficEnv::Urban,
+            traffic_density: density as u32,
+        },
+    }
+}
+
+fn traffic_class(b: &ObjectBox) -> bool {
+    matches!(
+        b.class.as_str(),
+        "car" | "truck" | "pedestrian" | "cyclist" | "bicycle" | "bus" | "motorcycle"
+    )
+}
+
+/// Whether `obb` overlaps any building of `town` (for tests of the layout).
+pub fn hits_building(town: &Town, obb: &Obb) -> bool {
+    town.buildings.iter().any(|b| b.obb.overlaps(obb))
+}
