@@ -105,7 +105,7 @@ struct RunArgs {
     #[arg(long, default_value_t = 256)]
     tele_width: u32,
     /// Image width of the side cameras (the RCO controller's side views), px.
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 96)]
     side_width: u32,
     /// Agent steps per second (frames, planner, RCO); must divide 20.
     #[arg(long, default_value_t = 2.5)]

@@ -27,6 +27,18 @@ pub fn dist(a: P2, b: P2) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
+/// Squared distance (no square root: for comparisons in hot loops).
+#[inline]
+pub fn dist2(a: P2, b: P2) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
+}
+
+/// Whether `a` and `b` are closer than `r`.
+#[inline]
+pub fn within(a: P2, b: P2, r: f64) -> bool {
+    dist2(a, b) < r * r
+}
+
 /// The unit vector at heading `yaw`.
 #[inline]
 pub fn unit(yaw: f64) -> P2 {
@@ -229,6 +241,10 @@ impl Obb {
     }
 }
 
+/// A small seeded stream of uniform draws (Xoshiro256++ from `stats::seed`), cloneable: the
+/// world's scene-building stream.
+pub type Stream = fogline_world::scene::Draw;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -303,7 +319,3 @@ mod tests {
         assert!(!a.overlaps_disc([2.4, 1.4], 0.3));
     }
 }
-
-/// A small seeded stream of uniform draws (Xoshiro256++ from `stats::seed`), cloneable: the
-/// world's scene-building stream.
-pub type Stream = fogline_world::scene::Draw;

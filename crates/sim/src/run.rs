@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 use crate::SimError;
 use crate::agent::{AgentInput, AgentParams, Baseline};
 use crate::config::Config;
-use crate::geom::{Obb, dist, dot, sub};
+use crate::geom::{Obb, dist, dot, sub, within};
 use crate::route::Route;
 use crate::score::{
     BlockedMonitor, CollisionFilter, Event, EventKind, OutsideLanesMonitor, RedLightMonitor,
@@ -99,7 +99,7 @@ impl Default for SensorParams {
             height: 144,
             wide_fov_deg: 90.0,
             agent_hz: 2.5,
-            side_width: 128,
+            side_width: 96,
             tele_width: 256,
         }
     }
@@ -662,7 +662,7 @@ pub fn run_route(
         let ebox = ego_box(&ego);
         collisions.tick(ebox.c);
         for n in &traffic.npcs {
-            if dist(n.pos, ebox.c) < 8.0
+            if within(n.pos, ebox.c, 8.0)
                 && ebox.overlaps(&n.obb())
                 && collisions.contact(n.id, n.pos, t)
             {
@@ -672,7 +672,7 @@ pub fn run_route(
             }
         }
         for w in &traffic.walkers {
-            if dist(w.pos, ebox.c) < 6.0
+            if within(w.pos, ebox.c, 6.0)
                 && ebox.overlaps(&w.obb())
                 && collisions.contact(w.id, w.pos, t)
             {
@@ -688,7 +688,7 @@ pub fn run_route(
             }
         }
         for (k, b) in town.buildings.iter().enumerate() {
-            if dist(b.obb.c, ebox.c) < b.obb.hl + 6.0
+            if within(b.obb.c, ebox.c, b.obb.hl + 6.0)
                 && ebox.overlaps(&b.obb)
                 && collisions.contact(500_000 + k as u64, pos, t)
             {
@@ -701,7 +701,7 @@ pub fn run_route(
             .map(|l| (l.id, l.pos, 0.15))
             .chain(town.signs.iter().map(|s| (s.id, s.pos, 0.1)))
         {
-            if dist(p, ebox.c) < 5.0 && ebox.overlaps_disc(p, r) && collisions.contact(id, p, t) {
+            if within(p, ebox.c, 5.0) && ebox.overlaps_disc(p, r) && collisions.contact(id, p, t) {
                 events.push(Event::new(EventKind::CollisionLayout, t, p[0], p[1]));
             }
         }
@@ -709,7 +709,7 @@ pub fn run_route(
         let tail = ego.point(-1.2, 0.0);
         for l in &town.lights {
             let line = town.stop_line(l.node, l.din);
-            if dist(line.centre(), tail) > 20.0 {
+            if !within(line.centre(), tail, 20.0) {
                 continue;
             }
             let is_red = town.light(l.node, l.din, t) == Light::Red;

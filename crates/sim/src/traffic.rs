@@ -22,7 +22,7 @@ use std::collections::VecDeque;
 use fogline_world::objects;
 use fogline_world::scene::{Draw, ObjectClass, Part};
 
-use crate::geom::{Obb, P2, Stream, add, dist, dot, sub, unit};
+use crate::geom::{Obb, P2, Stream, add, dist, dot, sub, unit, within};
 use crate::route::{CrossingEvent, Route};
 use crate::town::{Control, LINE_TO_ZONE_M, Light, Town, WALK_MID_M, ZEBRA_M, ZONE_M, turn_of};
 use crate::vehicle::VehicleState;
@@ -641,12 +641,12 @@ impl Traffic {
             let mut lead_v = 0.0;
             let centre = n.pos;
             for b in &bodies {
-                if b.id == n.id || dist(b.pts[1], centre) > look + n.half_len_m + 8.0 {
+                if b.id == n.id || !within(b.pts[1], centre, look + n.half_len_m + 8.0) {
                     continue;
                 }
                 'probe: for &(s, p, u) in &probes {
                     for q in b.pts {
-                        if dist(p, q) < n.half_width_m + b.half_w + 0.25 {
+                        if within(p, q, n.half_width_m + b.half_w + 0.25) {
                             // Only what is ahead (not something alongside behind the bumper).
                             if dot(sub(q, centre), unit(n.yaw)) < 0.0 {
                                 continue;
@@ -715,7 +715,7 @@ impl Traffic {
                                 && conn
                                     .pts
                                     .iter()
-                                    .any(|&p| dist(p, ego_pos) < 3.5 + EGO_HALF_LENGTH_M);
+                                    .any(|&p| within(p, ego_pos, 3.5 + EGO_HALF_LENGTH_M));
                             let oncoming = control == Control::Signal
                                 && turn_of(din, dout) == 1
                                 && approaching.iter().any(|&(m, di, dl, sp)| {
@@ -761,7 +761,7 @@ impl Traffic {
         }
         // Respawn those that drifted away.
         let far: Vec<usize> = (0..self.npcs.len())
-            .filter(|&k| dist(self.npcs[k].pos, ego_pos) > DESPAWN_M)
+            .filter(|&k| !within(self.npcs[k].pos, ego_pos, DESPAWN_M))
             .collect();
         for k in far.into_iter().rev() {
             self.npcs.remove(k);
@@ -821,7 +821,7 @@ impl Traffic {
                 ];
                 let traffic_near = vehicles
                     .iter()
-                    .any(|&(p, sp)| dist(p, mid) < 8.0 + 2.0 * sp);
+                    .any(|&(p, sp)| within(p, mid, 8.0 + 2.0 * sp));
                 if allowed && !traffic_near {
                     w.waiting = false;
                 } else {
@@ -893,7 +893,7 @@ impl Traffic {
             w.pos = add(w.pos, [to[0] / d, to[1] / d], step);
         }
         let far: Vec<usize> = (0..self.walkers.len())
-            .filter(|&k| dist(self.walkers[k].pos, ego_p) > WALKER_DESPAWN_M)
+            .filter(|&k| !within(self.walkers[k].pos, ego_p, WALKER_DESPAWN_M))
             .collect();
         for k in far.into_iter().rev() {
             self.walkers.remove(k);
