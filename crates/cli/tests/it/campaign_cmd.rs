@@ -2,23 +2,10 @@
 //! crash safety under SIGKILL.
 
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
-fn fogline(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fogline"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use crate::{fogline, text};
 
 fn write_config(path: &Path, clips: usize, conditions: &str) {
     write_config_at(path, clips, conditions, (192, 108));

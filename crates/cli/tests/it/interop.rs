@@ -183,13 +183,13 @@ fn carla_driver_interface_demo_drives_fogline_serve() {
     server.assert_running();
 }
 
-#[test]
-fn fogline_client_drives_the_carla_driver_interface_server() {
-    let python = python();
+/// carla-driver-interface's policy server with its `route_follower` policy over a 6.4 s
+/// horizon, on a free loopback port, once it accepts connections.
+fn route_follower_server() -> (ChildGuard, SocketAddr) {
     let port = free_port();
     let addr: SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
     let mut server = ChildGuard::spawn(
-        Command::new(&python)
+        Command::new(python())
             .args([
                 "-m",
                 "carla_driver_interface.cli",
@@ -211,6 +211,12 @@ fn fogline_client_drives_the_carla_driver_interface_server() {
         "carla-driver-interface serve",
     );
     wait_until_listening(addr, &mut server, Duration::from_secs(60));
+    (server, addr)
+}
+
+#[test]
+fn fogline_client_drives_the_carla_driver_interface_server() {
+    let (mut server, addr) = route_follower_server();
 
     let cfg = WorldConfig {
         width: 288,
@@ -337,32 +343,7 @@ fn fogline_serve_answers_as_the_in_process_planner_does() {
 
 #[test]
 fn fogline_campaign_drives_the_carla_driver_interface_server() {
-    let python = python();
-    let port = free_port();
-    let addr: SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
-    let mut server = ChildGuard::spawn(
-        Command::new(&python)
-            .args([
-                "-m",
-                "carla_driver_interface.cli",
-                "--log-level",
-                "WARNING",
-                "serve",
-            ])
-            .args(["--host", "127.0.0.1", "--port"])
-            .arg(port.to_string())
-            .args([
-                "--policy",
-                "route_follower",
-                "--policy-arg",
-                "horizon_s=6.4",
-            ])
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::inherit()),
-        "carla-driver-interface serve",
-    );
-    wait_until_listening(addr, &mut server, Duration::from_secs(60));
+    let (_server, addr) = route_follower_server();
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("remote.toml");
     std::fs::write(

@@ -12,3 +12,20 @@ mod rco_cmd;
 mod reference_planner;
 mod report_cmd;
 mod world_cmd;
+
+/// Runs the `fogline` binary with `args`.
+pub fn fogline(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A finished command's stdout and stderr, for assertion messages.
+pub fn text(o: &std::process::Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}

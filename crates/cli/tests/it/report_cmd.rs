@@ -1,22 +1,8 @@
 //! `fogline report`, and the report that `fogline envelope` writes beside its outputs.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn fogline(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fogline"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use crate::{fogline, text};
 
 /// pairs.csv (a synthetic corpus) and `fogline envelope`'s outputs in `dir/envelope`.
 fn envelope_dir(dir: &Path, seed: u64) {

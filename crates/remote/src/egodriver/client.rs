@@ -9,7 +9,7 @@ use tonic::metadata::MetadataValue;
 use tonic::transport::{Channel, Endpoint};
 use tonic::{Code, Status};
 
-use super::wire::common::{DynamicState, Pose, PoseAtTime, Quat, Vec3};
+use super::wire::common::{DynamicState, PoseAtTime, Vec3};
 use super::wire::egodriver::drive_session_request::rollout_spec::VehicleDefinition;
 use super::wire::egodriver::drive_session_request::{DebugInfo, RolloutSpec};
 use super::wire::egodriver::egodriver_service_client::EgodriverServiceClient;
@@ -23,6 +23,7 @@ use super::wire::nre::grpc::protos::sensorsim::camera_spec::CameraParam;
 use super::wire::nre::grpc::protos::sensorsim::{
     CameraSpec, OpenCvPinholeCameraParam, ShutterType,
 };
+use super::wire_pose;
 use super::{
     CONTRACT_METADATA_KEY, CONTRACT_REVISION, DEFAULT_EXPLANATION_FIELDS, MAX_MESSAGE_BYTES, T0_US,
     wire_time,
@@ -265,7 +266,7 @@ fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Sessi
             )));
         }
         poses.push(PoseAtTime {
-            pose: Some(pose(p.x_m, p.y_m, 0.0, quat_from_yaw(p.yaw_rad))),
+            pose: Some(wire_pose(p.x_m, p.y_m, 0.0, quat_from_yaw(p.yaw_rad))),
             timestamp_us: wire_time(p.t_s),
         });
         states.push(DynamicState {
@@ -308,22 +309,6 @@ fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Sessi
     })
 }
 
-fn pose(x: f64, y: f64, z: f64, q: [f64; 4]) -> Pose {
-    Pose {
-        vec: Some(Vec3 {
-            x: x as f32,
-            y: y as f32,
-            z: z as f32,
-        }),
-        quat: Some(Quat {
-            w: q[0] as f32,
-            x: q[1] as f32,
-            y: q[2] as f32,
-            z: q[3] as f32,
-        }),
-    }
-}
-
 /// A camera as `start_session` declares it: pinhole intrinsics, resolution, the
 /// PhysicalAI name, and the optical frame's pose in the rig (revision 2).
 fn declare(c: &CameraCalib) -> AvailableCamera {
@@ -344,7 +329,7 @@ fn declare(c: &CameraCalib) -> AvailableCamera {
             shutter_type: ShutterType::Global as i32,
             ..Default::default()
         }),
-        rig_to_camera: Some(pose(c.x_m, c.y_m, c.z_m, q)),
+        rig_to_camera: Some(wire_pose(c.x_m, c.y_m, c.z_m, q)),
         logical_id: name,
     }
 }
@@ -612,7 +597,7 @@ mod tests {
                 poses: points
                     .iter()
                     .map(|&(t, x, y)| PoseAtTime {
-                        pose: Some(pose(x, y, 0.0, [1.0, 0.0, 0.0, 0.0])),
+                        pose: Some(wire_pose(x, y, 0.0, [1.0, 0.0, 0.0, 0.0])),
                         timestamp_us: wire_time(t),
                     })
                     .collect(),

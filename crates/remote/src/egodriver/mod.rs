@@ -75,3 +75,25 @@ pub const DEFAULT_EXPLANATION_FIELDS: [&str; 3] = ["coc", "reasoning", "explanat
 pub(crate) fn wire_time(t_s: f64) -> u64 {
     (T0_US as f64 + t_s * 1e6).round().max(0.0) as u64
 }
+
+/// A wire pose from a translation and a `[w, x, y, z]` quaternion (the contract's floats).
+pub(crate) fn wire_pose(x: f64, y: f64, z: f64, q: [f64; 4]) -> wire::common::Pose {
+    wire::common::Pose {
+        vec: Some(wire::common::Vec3 {
+            x: x as f32,
+            y: y as f32,
+            z: z as f32,
+        }),
+        quat: Some(wire::common::Quat {
+            w: q[0] as f32,
+            x: q[1] as f32,
+            y: q[2] as f32,
+            z: q[3] as f32,
+        }),
+    }
+}
+
+/// A wire pose at `(x, y, z)` heading `yaw` about z.
+pub(crate) fn wire_pose_yaw(x: f64, y: f64, z: f64, yaw: f64) -> wire::common::Pose {
+    wire_pose(x, y, z, crate::geom::quat_from_yaw(yaw))
+}

@@ -14,9 +14,7 @@ use tonic::transport::server::TcpIncoming;
 use tonic::{Request, Response, Status};
 
 use super::wire::common::version_id::ApiVersion;
-use super::wire::common::{
-    Empty, Pose, PoseAtTime, Quat, SessionRequestStatus, Trajectory, Vec3, VersionId,
-};
+use super::wire::common::{Empty, PoseAtTime, SessionRequestStatus, Trajectory, VersionId};
 use super::wire::egodriver::drive_response::DebugInfo;
 use super::wire::egodriver::egodriver_service_server::{EgodriverService, EgodriverServiceServer};
 use super::wire::egodriver::{
@@ -26,7 +24,7 @@ use super::wire::egodriver::{
 use super::wire::nre::grpc::protos::sensorsim::available_cameras_return::AvailableCamera;
 use super::wire::nre::grpc::protos::sensorsim::camera_spec::CameraParam;
 use super::{ALPASIM_API_VERSION, CONTRACT_METADATA_KEY, CONTRACT_REVISION, MAX_MESSAGE_BYTES};
-use crate::geom::{CameraFrame, camera_angles, matrix, quat_from_yaw, wrap, yaw_of};
+use crate::geom::{CameraFrame, camera_angles, matrix, wrap, yaw_of};
 use crate::serving::{StopFlag, server_runtime, stop_flag, stopped};
 use crate::{FailureKind, PlanRequest, Planner, ServerHandle, codec};
 
@@ -568,7 +566,7 @@ fn answer(out: &PlannerOutput, anchor: &EgoSample, now: u64, describe: &str) -> 
     let (sy, cy) = anchor.yaw.sin_cos();
     let step_us = (DT_S * 1e6).round() as u64;
     let to_local = |x: f64, y: f64, heading: f64, k: u64| PoseAtTime {
-        pose: Some(wire_pose(
+        pose: Some(super::wire_pose_yaw(
             anchor.x + cy * x - sy * y,
             anchor.y + sy * x + cy * y,
             anchor.z,
@@ -599,23 +597,6 @@ fn answer(out: &PlannerOutput, anchor: &EgoSample, now: u64, describe: &str) -> 
             sampled_trajectories: Vec::new(),
         }),
         terminate_session: false,
-    }
-}
-
-fn wire_pose(x: f64, y: f64, z: f64, yaw: f64) -> Pose {
-    let q = quat_from_yaw(yaw);
-    Pose {
-        vec: Some(Vec3 {
-            x: x as f32,
-            y: y as f32,
-            z: z as f32,
-        }),
-        quat: Some(Quat {
-            w: q[0] as f32,
-            x: q[1] as f32,
-            y: q[2] as f32,
-            z: q[3] as f32,
-        }),
     }
 }
 
