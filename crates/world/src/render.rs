@@ -2,18 +2,25 @@
 //!
 //! - **Ground** (`z = 0`): for a level camera without roll, every image row below the horizon
 //!   meets the ground at one depth, and the ground point moves linearly along the row, so the
-//!   ground costs a few additions per pixel plus the strip lookup. Markings are shaded by
-//!   their exact coverage of the pixel's footprint (no aliasing sparkle on thin lines).
+//!   ground costs a few additions per pixel plus the strip lookup. The lookup only visits the
+//!   strips, markings and bars that may touch a block of [`BLOCK`] pixels (conservative
+//!   ranges of the strip coordinates over the block; the others could not change the pixel).
+//!   Markings are shaded by their exact coverage of the pixel's footprint (no aliasing sparkle
+//!   on thin lines). The ground is drawn after the solids and shaded only where it wins the
+//!   depth test: the same image as drawing it first.
 //! - **Sky**: a vertical gradient; depth `+inf`.
 //! - **Solids**: every visible face of every cuboid and plate is clipped at the near plane,
 //!   projected and scan-converted with a depth test (`1/z` is affine in the image).
-//! - **Depth**: Euclidean distance from the camera centre, metres.
+//! - **Depth**: Euclidean distance from the camera centre, metres (the per-pixel factors from
+//!   depth along the axis are computed once per calibration).
 //! - **Boxes**: the bounding box of the pixels each tracked object wins in the depth test (the
 //!   visible part), objects with fewer than [`MIN_BOX_PIXELS`] visible pixels left out.
 
-use crate::scene::{Part, Rgb, Scene};
+use crate::scene::{Bar, Centre, Mark, Part, Rgb, Scene, Strip};
 use fogline_perturb::frame::{DepthMap, Frame, ObjectBox};
 use fogline_types::clip::CameraCalib;
+use std::f64::consts::{PI, TAU};
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// Objects with fewer visible pixels get no box.
 pub const MIN_BOX_PIXELS: u32 = 4;
@@ -84,7 +91,8 @@ pub fn render(scene: &Scene, calib: &CameraCalib, t: f64, with_depth: bool) -> V
     let mut rgb = vec![0u8; n * 3];
     let mut zbuf = vec![f32::INFINITY; n];
     let mut ids = vec![0u16; n];
-    draw_ground(scene, &cam, &mut rgb, &mut zbuf);
+    // Solids first, then the ground only where it wins the depth test: the same pixels, depths
+    // and ids as drawing the ground first (see `draw_ground`), without shading hidden ground.
     for (i, solid) in scene.solids.iter().enumerate() {
         let id = if solid.tag.is_some() {
             (i + 1) as u16
@@ -98,24 +106,14 @@ pub fn render(scene: &Scene, calib: &CameraCalib, t: f64, with_depth: bool) -> V
             );
         }
     }
+    draw_ground(scene, &cam, &mut rgb, &mut zbuf, &mut ids);
     let boxes = boxes_of(scene, &ids, cam.w, cam.h);
     let depth = with_depth.then(|| {
         let mut dist = zbuf;
-        // a² per column once (the same bits as computing it per pixel).
-        let aa: Vec<f64> = (0..cam.w)
-            .map(|u| {
-                let a = (u as f64 + 0.5 - cam.cx) / cam.fx;
-                a * a
-            })
-            .collect();
-        for v in 0..cam.h {
-            let b = (v as f64 + 0.5 - cam.cy) / cam.fy;
-            let bb = b * b;
-            for (z, &aa) in dist[v * cam.w..(v + 1) * cam.w].iter_mut().zip(&aa) {
-                if z.is_finite() {
-                    *z = (f64::from(*z) * (1.0 + aa + bb).sqrt()) as f32;
-                }
-            }
+        let factors = depth_factors(&cam);
+        for (z, &k) in dist.iter_mut().zip(factors.iter()) {
+            // `+inf` (sky) stays `+inf`: the same as leaving it alone (there is no NaN).
+            *z = (f64::from(*z) * k) as f32;
         }
         DepthMap::new(calib.width, calib.height, dist).expect("sizes match by construction")
     });
@@ -126,21 +124,82 @@ pub fn render(scene: &Scene, calib: &CameraCalib, t: f64, with_depth: bool) -> V
     }
 }
 
-#[inline]
-fn put(rgb: &mut [u8], i: usize, c: Rgb) {
-    rgb[3 * i] = to_u8(c[0]);
-    rgb[3 * i + 1] = to_u8(c[1]);
-    rgb[3 * i + 2] = to_u8(c[2]);
+/// Per-pixel factors from depth along the axis to distance from the camera centre.
+type Factors = Arc<[f64]>;
+
+/// The factors `sqrt(1 + a² + b²)` of a calibration's pixels (row-major), the same bits as
+/// computing them per frame; computed once per calibration and kept for the most recent ones
+/// (the rig's four cameras, and more), up to [`FACTORS_KEPT`] values in all.
+fn depth_factors(cam: &Cam) -> Factors {
+    type Cache = Vec<([u64; 6], Factors)>;
+    static CACHE: Mutex<Cache> = Mutex::new(Vec::new());
+    let key = [
+        cam.fx.to_bits(),
+        cam.fy.to_bits(),
+        cam.cx.to_bits(),
+        cam.cy.to_bits(),
+        cam.w as u64,
+        cam.h as u64,
+    ];
+    let lock = || CACHE.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((_, f)) = lock().iter().find(|(k, _)| *k == key) {
+        return Arc::clone(f);
+    }
+    // a² per column once (the same bits as computing it per pixel).
+    let aa: Vec<f64> = (0..cam.w)
+        .map(|u| {
+            let a = (u as f64 + 0.5 - cam.cx) / cam.fx;
+            a * a
+        })
+        .collect();
+    let mut f = Vec::with_capacity(cam.w * cam.h);
+    for v in 0..cam.h {
+        let b = (v as f64 + 0.5 - cam.cy) / cam.fy;
+        let bb = b * b;
+        f.extend(aa.iter().map(|&aa| (1.0 + aa + bb).sqrt()));
+    }
+    let f: Factors = f.into();
+    let mut cache = lock();
+    if !cache.iter().any(|(k, _)| *k == key) {
+        // Oldest first out.
+        while !cache.is_empty()
+            && cache.iter().map(|(_, f)| f.len()).sum::<usize>() + f.len() > FACTORS_KEPT
+        {
+            cache.remove(0);
+        }
+        cache.push((key, Arc::clone(&f)));
+    }
+    f
 }
 
+/// At most this many depth factors (64 MiB) are kept across frames.
+const FACTORS_KEPT: usize = 1 << 23;
+
 /// `x.clamp(0, 255).round() as u8`, bit for bit, without a call to `roundf` (which is not
-/// inlined on baseline x86-64): for `0 ≤ x < 2^24` the fractional part `x − trunc(x)` is exact,
-/// and rounding is half away from zero. NaN gives 0, as `round` does.
+/// inlined on baseline x86-64) and in float arithmetic only (so that [`to_u8_row`] vectorises):
+/// for `0 ≤ x ≤ 255`, adding and taking away 2^23 gives the nearest integer exactly, one less
+/// when above `x` is `floor(x)`; the fractional part `x − floor(x)` is exact, and rounding is
+/// half away from zero. NaN gives 0, as `round` does (checked for every `f32` by an ignored
+/// test).
 #[inline]
 fn to_u8(x: f32) -> u8 {
-    let x = x.clamp(0.0, 255.0);
-    let i = x as u32;
-    (i + u32::from(x - i as f32 >= 0.5)) as u8
+    const MAGIC: f32 = 8_388_608.0;
+    // Not `clamp`, which keeps NaN: NaN → 0 here (one `maxps`, one `minps`).
+    let x = if x > 0.0 { x } else { 0.0 };
+    let x = if x < 255.0 { x } else { 255.0 };
+    let r = (x + MAGIC) - MAGIC;
+    let floor = if r > x { r - 1.0 } else { r };
+    let v = if x - floor >= 0.5 { floor + 1.0 } else { floor };
+    // `v + 2^23` holds the integer `v` in its low mantissa bits.
+    (v + MAGIC).to_bits() as u8
+}
+
+/// [`to_u8`] over a row of channels (a loop the compiler vectorises).
+#[inline]
+fn to_u8_row(src: &[f32], dst: &mut [u8]) {
+    for (d, &x) in dst.iter_mut().zip(src) {
+        *d = to_u8(x);
+    }
 }
 
 /// `x.floor() as i64`, exactly, for `|x| < 2^62` (no call to `floor`).
@@ -186,14 +245,163 @@ fn coverage(dist: f64, half: f64, fp: f64) -> f32 {
     ((b - a) / fp).clamp(0.0, 1.0) as f32
 }
 
-fn draw_ground(scene: &Scene, cam: &Cam, rgb: &mut [u8], zbuf: &mut [f32]) {
+/// Pixels per block of a ground row for the strip culling.
+const BLOCK: usize = 16;
+/// Slack on the conservative `(s, d)` ranges of a block, m (float error is ~1e-10 m).
+const SLACK_M: f64 = 1e-3;
+/// Slack on polar angles, rad (`fast_atan2` is within 2e-5 rad).
+const SLACK_RAD: f64 = 1e-3;
+
+/// Conservative ranges of `(s, d)` (as [`Centre::local`] computes them) over the ground points
+/// of a block of pixels: the segment from `p0` to `p1`.
+struct Span {
+    s: (f64, f64),
+    d: (f64, f64),
+}
+
+fn span(centre: &Centre, p0: [f64; 2], p1: [f64; 2]) -> Span {
+    match *centre {
+        Centre::Line { .. } => {
+            // Affine along the segment: the extremes are at its ends.
+            let (s0, d0) = centre.local(p0);
+            let (s1, d1) = centre.local(p1);
+            let es = SLACK_M + 1e-9 * (s0.abs() + s1.abs());
+            let ed = SLACK_M + 1e-9 * (d0.abs() + d1.abs());
+            Span {
+                s: (s0.min(s1) - es, s0.max(s1) + es),
+                d: (d0.min(d1) - ed, d0.max(d1) + ed),
+            }
+        }
+        Centre::Arc {
+            centre: c,
+            radius,
+            left,
+            start,
+        } => {
+            let v0 = [p0[0] - c[0], p0[1] - c[1]];
+            let v1 = [p1[0] - c[0], p1[1] - c[1]];
+            let e = [p1[0] - p0[0], p1[1] - p0[1]];
+            let l2 = e[0] * e[0] + e[1] * e[1];
+            let t = if l2 > 0.0 {
+                (-(v0[0] * e[0] + v0[1] * e[1]) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let q = [v0[0] + t * e[0], v0[1] + t * e[1]];
+            let dmin = (q[0] * q[0] + q[1] * q[1]).sqrt();
+            let dmax = (v0[0] * v0[0] + v0[1] * v0[1])
+                .sqrt()
+                .max((v1[0] * v1[0] + v1[1] * v1[1]).sqrt());
+            let ed = SLACK_M + 1e-9 * (radius.abs() + dmax);
+            let d = if left {
+                (radius - dmax - ed, radius - dmin + ed)
+            } else {
+                (dmin - radius - ed, dmax - radius + ed)
+            };
+            let mut s = (f64::NEG_INFINITY, f64::INFINITY);
+            if dmin > SLACK_M {
+                // The polar angle is monotonic along a segment that misses the centre, and
+                // sweeps less than π: from a0 to a0 + th.
+                let a0 = v0[1].atan2(v0[0]);
+                let th = (v0[0] * v1[1] - v0[1] * v1[0]).atan2(v0[0] * v1[0] + v0[1] * v1[1]);
+                let (lo, hi) = (a0.min(a0 + th) - start, a0.max(a0 + th) - start);
+                let (lo, hi) = if left { (lo, hi) } else { (-hi, -lo) };
+                let (lo, hi) = (lo - SLACK_RAD, hi + SLACK_RAD);
+                // `wrap` maps the angle into (-π, π]: the shift that does so for the whole
+                // range, when one does.
+                let k = ((lo + hi) * 0.5 / TAU).round();
+                let (lo, hi) = (lo - k * TAU, hi - k * TAU);
+                if lo > -PI + SLACK_RAD && hi < PI - SLACK_RAD {
+                    let es = SLACK_M + 1e-8 * radius.abs();
+                    let (a, b) = (radius * lo, radius * hi);
+                    s = (a.min(b) - es, a.max(b) + es);
+                }
+            }
+            Span { s, d }
+        }
+    }
+}
+
+/// A strip that may contain some point of a block, with the markings that may touch it.
+struct Cand<'a> {
+    strip: &'a Strip,
+    marks: std::ops::Range<usize>,
+    bars: std::ops::Range<usize>,
+    /// Every point of the block is on the strip's asphalt.
+    asphalt: bool,
+}
+
+/// The strips (in order), markings and bars that may matter for a block of pixels: the others
+/// cannot contain its points (strips) or touch them (markings: zero coverage; bars: outside).
+#[derive(Default)]
+struct Culled<'a> {
+    cands: Vec<Cand<'a>>,
+    marks: Vec<&'a Mark>,
+    bars: Vec<&'a Bar>,
+}
+
+impl<'a> Culled<'a> {
+    /// The candidates of `scene` for the ground points from `p0` to `p1`.
+    fn fill(&mut self, scene: &'a Scene, p0: [f64; 2], p1: [f64; 2], fp_lat: f64, fp_long: f64) {
+        self.cands.clear();
+        self.marks.clear();
+        self.bars.clear();
+        // Coverage is 0 beyond half a marking's width plus half the footprint.
+        let half_fp = fp_lat.max(1e-6) * 0.5;
+        for strip in &scene.strips {
+            let r = span(&strip.centre, p0, p1);
+            if r.s.1 < strip.s_min
+                || r.s.0 > strip.s_max
+                || r.d.1 < strip.d_min - strip.walk
+                || r.d.0 > strip.d_max + strip.walk
+            {
+                continue;
+            }
+            let m0 = self.marks.len();
+            self.marks.extend(strip.marks.iter().filter(|m| {
+                let reach = m.width * 0.5 + half_fp;
+                !(r.s.1 < m.s_min || r.s.0 > m.s_max || r.d.0 - m.d > reach || r.d.1 - m.d < -reach)
+            }));
+            let b0 = self.bars.len();
+            self.bars.extend(strip.bars.iter().filter(|bar| {
+                !(r.d.1 < bar.d_min
+                    || r.d.0 > bar.d_max
+                    || r.s.1 < bar.s_min - fp_long
+                    || r.s.0 > bar.s_max + fp_long)
+            }));
+            self.cands.push(Cand {
+                strip,
+                marks: m0..self.marks.len(),
+                bars: b0..self.bars.len(),
+                asphalt: r.s.0 > strip.s_min
+                    && r.s.1 < strip.s_max
+                    && r.d.0 > strip.d_min
+                    && r.d.1 < strip.d_max,
+            });
+        }
+    }
+}
+
+/// Draws the ground and the sky where they win the depth test against the solids already
+/// drawn. Drawn first, the ground would set every pixel's depth and the solids would replace
+/// it where strictly nearer (first solid first on ties): so the ground wins exactly where its
+/// depth is not above the solids' (`ids` back to 0 there).
+fn draw_ground(scene: &Scene, cam: &Cam, rgb: &mut [u8], zbuf: &mut [f32], ids: &mut [u16]) {
     let look = &scene.look;
     let light = look.light;
     let haze = scale(look.sky_horizon, 0.92);
+    let w = cam.w;
+    let mut xs = vec![0.0f64; w];
+    let mut ys = vec![0.0f64; w];
+    let mut col = vec![0.0f32; 3 * w];
+    let mut culled = Culled::default();
     for v in 0..cam.h {
         let b = (v as f64 + 0.5 - cam.cy) / cam.fy;
         let rz = cam.f[2] + b * cam.d[2];
-        let row = v * cam.w;
+        let row = v * w;
+        let zrow = &mut zbuf[row..row + w];
+        let idrow = &mut ids[row..row + w];
+        let rgbrow = &mut rgb[3 * row..3 * (row + w)];
         if rz >= -1e-9 || cam.c[2] / -rz > FAR_M {
             // Sky (or ground too far to resolve: haze at its distance).
             let far = rz < -1e-9;
@@ -205,9 +413,18 @@ fn draw_ground(scene: &Scene, cam: &Cam, rgb: &mut [u8], zbuf: &mut [f32]) {
             } else {
                 f32::INFINITY
             };
-            for u in 0..cam.w {
-                put(rgb, row + u, c);
-                zbuf[row + u] = z;
+            let c8 = [to_u8(c[0]), to_u8(c[1]), to_u8(c[2])];
+            for ((zp, idp), px) in zrow
+                .iter_mut()
+                .zip(idrow.iter_mut())
+                .zip(rgbrow.chunks_exact_mut(3))
+            {
+                // (Neither depth is ever NaN.)
+                if z <= *zp {
+                    *zp = z;
+                    *idp = 0;
+                    px.copy_from_slice(&c8);
+                }
             }
             continue;
         }
@@ -219,29 +436,81 @@ fn draw_ground(scene: &Scene, cam: &Cam, rgb: &mut [u8], zbuf: &mut [f32]) {
         ];
         let (mut gx, mut gy) = (cam.c[0] + tt * ray0[0], cam.c[1] + tt * ray0[1]);
         let (sx, sy) = (tt * cam.r[0] / cam.fx, tt * cam.r[1] / cam.fx);
+        for (x, y) in xs.iter_mut().zip(ys.iter_mut()) {
+            *x = gx;
+            *y = gy;
+            gx += sx;
+            gy += sy;
+        }
         let fp_lat = tt / cam.fx;
         let fp_long = tt * tt / (cam.fy * cam.c[2]);
         let tex_amp = (1.0 / (1.0 + tt / 30.0)) as f32;
         let aerial = ((tt / FAR_M) as f32).min(1.0) * 0.6;
-        for u in 0..cam.w {
-            let c = ground_color(scene, gx, gy, fp_lat, fp_long, tex_amp);
-            let c = mix(scale(c, light), haze, aerial);
-            put(rgb, row + u, c);
-            zbuf[row + u] = tt as f32;
-            gx += sx;
-            gy += sy;
+        let tz = tt as f32;
+        for u0 in (0..w).step_by(BLOCK) {
+            let u1 = (u0 + BLOCK).min(w);
+            let mut block_culled = false;
+            for u in u0..u1 {
+                let px = &mut col[3 * u..3 * u + 3];
+                if zrow[u] < tz {
+                    // A solid is nearer: keep its colour (exact through f32).
+                    let old = &rgbrow[3 * u..3 * u + 3];
+                    px[0] = f32::from(old[0]);
+                    px[1] = f32::from(old[1]);
+                    px[2] = f32::from(old[2]);
+                    continue;
+                }
+                zrow[u] = tz;
+                idrow[u] = 0;
+                if !block_culled {
+                    let (p0, p1) = ([xs[u0], ys[u0]], [xs[u1 - 1], ys[u1 - 1]]);
+                    culled.fill(scene, p0, p1, fp_lat, fp_long);
+                    block_culled = true;
+                }
+                let c = ground_color(scene, &culled, xs[u], ys[u], fp_lat, fp_long, tex_amp);
+                let c = mix(scale(c, light), haze, aerial);
+                px.copy_from_slice(&c);
+            }
         }
+        to_u8_row(&col, rgbrow);
     }
 }
 
 const WHITE: Rgb = [232.0, 232.0, 226.0];
 const KERB: Rgb = [196.0, 194.0, 188.0];
 
+/// The ground colour at `(x, y)`: the first strip containing the point decides. Only the
+/// candidate strips, markings and bars are looked at (the others cannot contain or touch the
+/// point), with the same arithmetic as looking at all of them.
 #[inline]
-fn ground_color(scene: &Scene, x: f64, y: f64, fp_lat: f64, fp_long: f64, tex: f32) -> Rgb {
+fn ground_color(
+    scene: &Scene,
+    culled: &Culled,
+    x: f64,
+    y: f64,
+    fp_lat: f64,
+    fp_long: f64,
+    tex: f32,
+) -> Rgb {
+    let Culled { cands, marks, bars } = culled;
     let look = &scene.look;
+    if let [first, ..] = cands.as_slice()
+        && first.asphalt
+        && first.marks.is_empty()
+        && first.bars.is_empty()
+    {
+        // The first strip that may contain the point surely does, on its asphalt, with no
+        // marking near: its colour without `(s, d)`.
+        let n = cell_noise(scene.texture_seed, x, y) * tex;
+        return [
+            look.asphalt[0] + 7.0 * n,
+            look.asphalt[1] + 7.0 * n,
+            look.asphalt[2] + 7.0 * n,
+        ];
+    }
     let p = [x, y];
-    for strip in &scene.strips {
+    for cand in cands {
+        let strip = cand.strip;
         let (s, d) = strip.centre.local(p);
         if s < strip.s_min || s > strip.s_max {
             continue;
@@ -260,7 +529,7 @@ fn ground_color(scene: &Scene, x: f64, y: f64, fp_lat: f64, fp_long: f64, tex: f
             look.asphalt[1] + 7.0 * n,
             look.asphalt[2] + 7.0 * n,
         ];
-        for m in &strip.marks {
+        for m in &marks[cand.marks.clone()] {
             if s < m.s_min || s > m.s_max {
                 continue;
             }
@@ -274,7 +543,7 @@ fn ground_color(scene: &Scene, x: f64, y: f64, fp_lat: f64, fp_long: f64, tex: f
             }
             c = mix(c, m.color, cov);
         }
-        for bar in &strip.bars {
+        for bar in &bars[cand.bars.clone()] {
             if d < bar.d_min || d > bar.d_max || s < bar.s_min - fp_long || s > bar.s_max + fp_long
             {
                 continue;
@@ -547,21 +816,36 @@ fn fill_polygon(
             continue;
         }
         let row = y * cam.w;
-        for x in x0 as usize..=x1 as usize {
-            let inv_z = ia * (x as f64 + 0.5) + ib * vc + ic;
-            if inv_z <= 0.0 {
-                continue;
+        // `ia * (x + 0.5) + ib * vc + ic` with `ib * vc` hoisted (the same bits); the depths of
+        // a run of pixels first (a loop that vectorises), then the depth test.
+        let bv = ib * vc;
+        let (x0, x1) = (x0 as usize, x1 as usize + 1);
+        let mut zs = [0.0f32; RUN];
+        for start in (x0..x1).step_by(RUN) {
+            let end = (start + RUN).min(x1);
+            let zs = &mut zs[..end - start];
+            for (k, z) in zs.iter_mut().enumerate() {
+                let inv_z = ia * (f64::from((start + k) as u32) + 0.5) + bv + ic;
+                // NaN where the plane is behind (`inv_z <= 0`): it fails the depth test.
+                *z = if inv_z > 0.0 {
+                    (1.0 / inv_z) as f32
+                } else {
+                    f32::NAN
+                };
             }
-            let z = (1.0 / inv_z) as f32;
-            let i = row + x;
-            if z < zbuf[i] {
-                zbuf[i] = z;
-                ids[i] = id;
-                rgb[3 * i..3 * i + 3].copy_from_slice(&c8);
+            for (i, &z) in (row + start..row + end).zip(zs.iter()) {
+                if z < zbuf[i] {
+                    zbuf[i] = z;
+                    ids[i] = id;
+                    rgb[3 * i..3 * i + 3].copy_from_slice(&c8);
+                }
             }
         }
     }
 }
+
+/// Pixels per run of a polygon's span whose depths are computed together.
+const RUN: usize = 64;
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -580,7 +864,12 @@ fn boxes_of(scene: &Scene, ids: &[u16], w: usize, h: usize) -> Vec<ObjectBox> {
     // (x0, y0, x1, y1, count) per solid.
     let mut acc = vec![(usize::MAX, usize::MAX, 0usize, 0usize, 0u32); n];
     for y in 0..h {
-        for (x, &id) in ids[y * w..(y + 1) * w].iter().enumerate() {
+        let row = &ids[y * w..(y + 1) * w];
+        // Most rows hold no object: one vectorised pass tells.
+        if row.iter().fold(0, |a, &b| a | b) == 0 {
+            continue;
+        }
+        for (x, &id) in row.iter().enumerate() {
             if id != 0 {
                 let a = &mut acc[usize::from(id) - 1];
                 a.0 = a.0.min(x);
@@ -615,6 +904,15 @@ mod tests {
     use super::*;
 
     #[test]
+    #[ignore = "every f32: a few seconds"]
+    fn fast_rounding_matches_the_library_for_every_f32() {
+        for bits in 0..=u32::MAX {
+            let v = f32::from_bits(bits);
+            assert_eq!(to_u8(v), v.clamp(0.0, 255.0).round() as u8, "{bits:#x}");
+        }
+    }
+
+    #[test]
     fn fast_rounding_and_floor_match_the_library_bit_for_bit() {
         let mut x = -3.0f32;
         while x < 260.0 {
@@ -643,5 +941,140 @@ mod tests {
             }
             y += 977.123;
         }
+    }
+
+    /// Random strips (lines and arcs, finite and infinite extents, markings and bars) around
+    /// the origin.
+    fn random_strips(d: &mut crate::scene::Draw) -> Vec<Strip> {
+        (0..1 + d.index(8))
+            .map(|_| {
+                let centre = if d.chance(0.5) {
+                    let a: f64 = d.range(-3.2, 3.2);
+                    Centre::Line {
+                        origin: [d.range(-60.0, 60.0), d.range(-60.0, 60.0)],
+                        dir: [a.cos(), a.sin()],
+                    }
+                } else {
+                    Centre::Arc {
+                        centre: [d.range(-100.0, 100.0), d.range(-100.0, 100.0)],
+                        radius: if d.chance(0.1) {
+                            d.range(1e5, 1e9)
+                        } else {
+                            d.range(2.0, 150.0)
+                        },
+                        left: d.chance(0.5),
+                        start: d.range(-12.0, 12.0),
+                    }
+                };
+                let (s_min, s_max) = if d.chance(0.2) {
+                    (f64::NEG_INFINITY, f64::INFINITY)
+                } else {
+                    let a = d.range(-200.0, 200.0);
+                    (a, a + d.range(0.0, 300.0))
+                };
+                let (d_min, d_max) = (-d.range(0.5, 12.0), d.range(0.5, 16.0));
+                let marks = (0..d.index(8))
+                    .map(|_| Mark {
+                        d: d.range(d_min - 1.0, d_max + 1.0),
+                        width: d.range(0.05, 0.6),
+                        dash: d
+                            .chance(0.4)
+                            .then(|| (d.range(0.5, 4.0), d.range(4.0, 12.0))),
+                        color: [255.0, 200.0, 40.0],
+                        s_min: if d.chance(0.5) {
+                            -50.0
+                        } else {
+                            f64::NEG_INFINITY
+                        },
+                        s_max: if d.chance(0.5) { 50.0 } else { f64::INFINITY },
+                    })
+                    .collect();
+                let bars = (0..d.index(4))
+                    .map(|_| {
+                        let (a, b) = (d.range(-100.0, 100.0), d.range(d_min, d_max));
+                        Bar {
+                            s_min: a,
+                            s_max: a + d.range(0.2, 5.0),
+                            d_min: b,
+                            d_max: b + d.range(0.5, 8.0),
+                            stripes: d
+                                .chance(0.5)
+                                .then(|| (d.range(0.3, 0.8), d.range(0.9, 2.0))),
+                        }
+                    })
+                    .collect();
+                Strip {
+                    centre,
+                    s_min,
+                    s_max,
+                    d_min,
+                    d_max,
+                    walk: if d.chance(0.3) {
+                        0.0
+                    } else {
+                        d.range(0.5, 5.0)
+                    },
+                    marks,
+                    bars,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn culling_gives_the_same_colours_as_looking_at_every_strip() {
+        let mut d = crate::scene::Draw::new(5, &[1]);
+        let base = crate::scenarios::build("INTERSECTION", 3).scene;
+        let (mut culled_out, mut fast) = (0usize, 0usize);
+        for _ in 0..400 {
+            let scene = Scene {
+                strips: random_strips(&mut d),
+                ..base.clone()
+            };
+            // Everything, in order: the lookup without culling.
+            let mut all = Culled {
+                marks: scene.strips.iter().flat_map(|s| &s.marks).collect(),
+                bars: scene.strips.iter().flat_map(|s| &s.bars).collect(),
+                ..Culled::default()
+            };
+            let (mut m, mut b) = (0, 0);
+            for strip in &scene.strips {
+                all.cands.push(Cand {
+                    strip,
+                    marks: m..m + strip.marks.len(),
+                    bars: b..b + strip.bars.len(),
+                    asphalt: false,
+                });
+                m += strip.marks.len();
+                b += strip.bars.len();
+            }
+            let mut culled = Culled::default();
+            for _ in 0..20 {
+                // A block: BLOCK points from p0 by a step, as a ground row makes them.
+                let (mut x, mut y) = (d.range(-150.0, 150.0), d.range(-150.0, 150.0));
+                let step = d.range(0.001, 3.0);
+                let a: f64 = d.range(-3.2, 3.2);
+                let (sx, sy) = (step * a.cos(), step * a.sin());
+                let (fp_lat, fp_long) = (d.range(0.0, 0.5), d.range(0.0, 5.0));
+                let pts: Vec<[f64; 2]> = (0..BLOCK)
+                    .map(|_| {
+                        let p = [x, y];
+                        x += sx;
+                        y += sy;
+                        p
+                    })
+                    .collect();
+                culled.fill(&scene, pts[0], pts[BLOCK - 1], fp_lat, fp_long);
+                culled_out += scene.strips.len() - culled.cands.len();
+                fast += usize::from(culled.cands.first().is_some_and(|c| c.asphalt));
+                for p in &pts {
+                    let want = ground_color(&scene, &all, p[0], p[1], fp_lat, fp_long, 0.7);
+                    let got = ground_color(&scene, &culled, p[0], p[1], fp_lat, fp_long, 0.7);
+                    assert_eq!(want.map(f32::to_bits), got.map(f32::to_bits), "{p:?}");
+                }
+            }
+        }
+        // The test looks at culled strips and sure-asphalt blocks, not only at trivial ones.
+        assert!(culled_out > 1000 && fast > 100, "{culled_out} {fast}");
     }
 }
