@@ -1011,6 +1011,7 @@ fn bench_perturb(a: BenchPerturbArgs) -> Result<ExitCode> {
             "runs": a.runs,
             "threads": 1,
             "caches": "flushed (64 MiB sweep) before every timed run",
+            "gaussian_kernel": fogline_perturb::noise::GaussianTable::kernel_name(),
             "copy_ms": copy_ms,
             "copy_min_ms": copy.min_ms,
             "families": rows,
@@ -1028,8 +1029,11 @@ fn bench_perturb(a: BenchPerturbArgs) -> Result<ExitCode> {
     }
     writeln!(
         out,
-        "fogline bench perturb: {}x{} RGB frame ({mb:.1} MB), one thread, median of {} runs, caches flushed before each run",
-        a.width, a.height, a.runs
+        "fogline bench perturb: {}x{} RGB frame ({mb:.1} MB), one thread, median of {} runs, caches flushed before each run; Gaussian-noise kernel: {}",
+        a.width,
+        a.height,
+        a.runs,
+        fogline_perturb::noise::GaussianTable::kernel_name()
     )?;
     writeln!(
         out,

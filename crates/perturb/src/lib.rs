@@ -58,7 +58,8 @@
 //!
 //! # Determinism
 //!
-//! Every random draw comes from a [`rng::WyRand`] stream seeded with
+//! Every random draw comes from a [`rng::WyRand`] stream (Gaussian noise: eight
+//! [`rng::Xoshiro8`] lanes seeded from one) seeded with
 //! [`rng::child`]`(seed, path)`:
 //!
 //! - pixel noise: `path = [clip, camera, frame, condition, step]` then `[row]` per image row,

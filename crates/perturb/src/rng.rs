@@ -10,6 +10,11 @@
 //!   word per four samples and the generator would otherwise dominate their cost; every
 //!   stream is short (one image row, or one camera) and seeded from [`child`].
 //!
+//! - [`Xoshiro8`] runs eight *xoshiro256++* generators side by side (Blackman and Vigna; 256
+//!   bits of state each, seeded from one [`WyRand`] stream). Gaussian noise draws 25 bits per
+//!   sample, and eight independent 64-bit lanes are what one AVX-512 register holds, so the
+//!   vector kernel and the portable one produce the same stream.
+//!
 //! A stream therefore depends only on *what* is computed — (seed, clip, camera, frame,
 //! condition, step, row) — never on the thread that computes it or the order of the work.
 
@@ -72,6 +77,58 @@ impl WyRand {
     }
 }
 
+/// Eight *xoshiro256++* generators in lock-step: each call of [`Xoshiro8::next_words`] advances all
+/// eight and returns one 64-bit output per lane.
+///
+/// Lane `k`'s state words `s0..s3` are draws `4k .. 4k + 3` of `WyRand::new(seed)` (a lane
+/// whose four words are all zero, probability 2^-256, gets `s0 = 1`). The state is stored
+/// word-major (`s[j][k]` is word `j` of lane `k`) so that it loads straight into vector
+/// registers.
+#[derive(Debug, Clone)]
+pub struct Xoshiro8 {
+    /// `s[j][k]`: state word `j` of lane `k`.
+    pub(crate) s: [[u64; 8]; 4],
+}
+
+impl Xoshiro8 {
+    /// The eight generators of `seed` (see the type docs).
+    pub fn new(seed: u64) -> Self {
+        let mut w = WyRand::new(seed);
+        let mut s = [[0u64; 8]; 4];
+        for k in 0..8 {
+            for word in s.iter_mut() {
+                word[k] = w.next_u64();
+            }
+            if s.iter().all(|word| word[k] == 0) {
+                s[0][k] = 1;
+            }
+        }
+        Self { s }
+    }
+
+    /// The next output of every lane (xoshiro256++: `rotl(s0 + s3, 23) + s0`, then the
+    /// xoshiro256 state transition).
+    #[inline(always)]
+    pub fn next_words(&mut self) -> [u64; 8] {
+        let mut out = [0u64; 8];
+        let [s0, s1, s2, s3] = &mut self.s;
+        for k in 0..8 {
+            out[k] = s0[k]
+                .wrapping_add(s3[k])
+                .rotate_left(23)
+                .wrapping_add(s0[k]);
+            let t = s1[k] << 17;
+            s2[k] ^= s0[k];
+            s3[k] ^= s1[k];
+            s1[k] ^= s2[k];
+            s0[k] ^= s3[k];
+            s2[k] ^= t;
+            s3[k] = s3[k].rotate_left(45);
+        }
+        out
+    }
+}
+
 /// ⌊p·2^64⌋ saturated to [0, 2^64 − 1]: `u < threshold` has probability `p` to within 2^-64.
 pub fn probability_threshold(p: f64) -> u64 {
     if p <= 0.0 {
@@ -108,6 +165,31 @@ mod tests {
     ];
 
     #[test]
+    fn every_xoshiro8_lane_is_the_reference_xoshiro256plusplus() {
+        // The state below is lane 0 of `Xoshiro8::new(0)`: the first four outputs of
+        // wyrand(0) (`REFERENCE_SEED0`). The expected outputs come from the reference
+        // algorithm (xoshiro256plusplus.c) run with Python's integers:
+        // python3 -c "
+        // M=2**64-1; r=lambda x,k:((x<<k)|(x>>(64-k)))&M
+        // s=[0x111cb3a78f59a58e,0xceabd938ff4e856d,0x61fb51318f47d2a4,0x78bd03c491909760]
+        // for _ in range(3):
+        //   print(hex((r((s[0]+s[3])&M,23)+s[0])&M)); t=(s[1]<<17)&M
+        //   s[2]^=s[0]; s[3]^=s[1]; s[1]^=s[2]; s[0]^=s[3]; s[2]^=t; s[3]=r(s[3],45)"
+        let mut g = Xoshiro8::new(0);
+        assert_eq!(
+            [g.s[0][0], g.s[1][0], g.s[2][0], g.s[3][0]],
+            REFERENCE_SEED0
+        );
+        let got: Vec<u64> = (0..3).map(|_| g.next_words()[0]).collect();
+        assert_eq!(got, XOSHIRO_FROM_SEED0);
+        // Lane 3 is seeded by draws 12..16 of the same wyrand stream.
+        let mut w = WyRand::new(0);
+        let draws: Vec<u64> = (0..16).map(|_| w.next_u64()).collect();
+        let g = Xoshiro8::new(0);
+        assert_eq!([g.s[0][3], g.s[1][3], g.s[2][3], g.s[3][3]], draws[12..16]);
+    }
+
+    #[test]
     fn below_is_in_range_and_hits_every_value() {
         let mut r = WyRand::new(7);
         let mut seen = [false; 7];
@@ -116,6 +198,31 @@ mod tests {
             seen[v as usize] = true;
         }
         assert!(seen.iter().all(|&s| s));
+    }
+
+    const XOSHIRO_FROM_SEED0: [u64; 3] = [
+        0xc72d_28c6_069e_9269,
+        0xb668_dcfe_90bc_5d93,
+        0xb7c3_7f5e_15ee_45d8,
+    ];
+
+    #[test]
+    fn xoshiro8_lanes_give_the_published_xoshiro256plusplus_outputs() {
+        // State (1, 2, 3, 4): the first outputs published with the rand_xoshiro crate's tests.
+        let mut g = Xoshiro8::new(5);
+        for (j, word) in g.s.iter_mut().enumerate() {
+            word[5] = j as u64 + 1;
+        }
+        let got: Vec<u64> = (0..4).map(|_| g.next_words()[5]).collect();
+        assert_eq!(
+            got,
+            [
+                41_943_041,
+                58_720_359,
+                3_588_806_011_781_223,
+                3_591_011_842_654_386
+            ]
+        );
     }
 
     #[test]

@@ -532,6 +532,23 @@ fn bench_perturb_reports_every_family_next_to_the_copy_floor() {
         assert!(names.contains(&n), "{n}");
     }
     assert!(v["peers"].is_null());
+    let kernel = v["gaussian_kernel"].as_str().unwrap();
+    assert!(
+        ["avx512-vbmi", "avx2", "portable"].contains(&kernel),
+        "{kernel}"
+    );
+    // FOGLINE_SIMD=portable forces the portable Gaussian kernel, and says so.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args([
+            "bench", "perturb", "--width", "32", "--height", "16", "--runs", "1", "--filter",
+            "noise", "--json",
+        ])
+        .env("FOGLINE_SIMD", "portable")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["gaussian_kernel"], "portable");
     // The text form; no timing is asserted.
     let o = fogline(&[
         "bench", "perturb", "--width", "32", "--height", "16", "--runs", "1", "--filter", "noise",
