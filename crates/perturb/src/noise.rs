@@ -213,6 +213,7 @@ impl GaussianTable {
         let mut aux = WyRand::new(child(row_seed, &[1]));
         let mut signs = [0u64; 8];
         let mut entry = [0u32; CHUNK];
+        let (mut q_lo, mut q_hi, mut alias) = ([0u8; CHUNK], [0u8; CHUNK], [0u8; CHUNK]);
         let mut mags = [0u8; CHUNK];
         let mut equal = [0u8; CHUNK];
         let mut negs = [0u8; CHUNK];
@@ -223,19 +224,21 @@ impl GaussianTable {
             let index = bytes64(lanes.next_words());
             let hi = bytes64(lanes.next_words());
             let lo = bytes64(lanes.next_words());
-            // The table lookups, one per sample; everything after runs on whole arrays.
+            // The table lookups, one per sample; everything after runs on whole arrays of
+            // bytes (which compilers vectorise 16 or more lanes wide).
             for (e, &i) in entry.iter_mut().zip(&index) {
                 *e = self.entry[usize::from(i)];
             }
             for l in 0..CHUNK {
-                let u = u32::from(hi[l]) << 8 | u32::from(lo[l]);
-                let q = entry[l] & 0xFFFF;
-                mags[l] = if u < q {
-                    index[l]
-                } else {
-                    (entry[l] >> 16) as u8
-                };
-                equal[l] = u8::from(u == q);
+                let e = entry[l];
+                (q_lo[l], q_hi[l], alias[l]) = (e as u8, (e >> 8) as u8, (e >> 16) as u8);
+            }
+            for l in 0..CHUNK {
+                let (h, low, qh, ql) = (hi[l], lo[l], q_hi[l], q_lo[l]);
+                let accept = u8::from(h < qh) | (u8::from(h == qh) & u8::from(low < ql));
+                let keep = 0u8.wrapping_sub(accept); // 0xFF: M = i; 0: M = alias
+                mags[l] = (index[l] & keep) | (alias[l] & !keep);
+                equal[l] = u8::from(h == qh) & u8::from(low == ql);
             }
             for (k, b) in signs[c % 8].to_le_bytes().iter().enumerate() {
                 negs[8 * k..8 * k + 8].copy_from_slice(&SIGN_MASKS[usize::from(*b)].to_le_bytes());
