@@ -1,14 +1,18 @@
-//! Perception from pixels: lane geometry, the road surface ahead (occupancy per lateral bin),
-//! the lead object and its motion, brake lamps, stop lines and crossings, stop signs and
-//! traffic lights, the end of the road.
+//! Perception from pixels: image quality, the road's appearance with distance, lane
+//! geometry, the road surface ahead (occupancy per lateral bin), the lead object and its
+//! motion, brake lamps, stop lines and crossings, stop signs and traffic lights, the end of
+//! the road.
 //!
 //! Every measurement goes through the cameras' calibration and flat-ground geometry: a ground
-//! point `(x, y, 0)` is projected into the front-tele camera when it is far enough to be in
-//! its view (≥ 13 m) and into the front-wide camera otherwise, and its colour is classified.
+//! point `(x, y, 0)` is read from the front-tele camera when it is far enough to be in its
+//! view (≥ 13 m) and from the front-wide camera otherwise. Every reading is a *pooled* mean
+//! over a patch whose size follows the frame's measured noise (see [`crate::vision`]), and
+//! every test is relative to the scene's own references: the asphalt's colour at that
+//! distance ([`RoadModel`]) and the frame's white level.
 
 use crate::vision::{
-    View, chroma, is_amber_lamp, is_green_lamp, is_red_lamp, is_road, is_sign_red, is_white_paint,
-    is_yellow_paint, lum,
+    LampColour, Refs, Rgb, Sample, View, chroma, gain_of, is_object, is_road, is_sign_red,
+    is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance,
 };
 use fogline_types::clip::{CameraId, EgoPose, PlannerInput};
 
@@ -51,6 +55,9 @@ pub struct LeadSeen {
     pub right_edge: f64,
     /// Its left-most lateral extent, m.
     pub left_edge: f64,
+    /// Confidence in [0, 1]: how clearly its face stands out from the asphalt, given the
+    /// measured noise.
+    pub confidence: f64,
 }
 
 /// The lane the ego drives in.
@@ -66,6 +73,24 @@ pub struct LaneSeen {
     pub points: usize,
     /// The left boundary is a dashed white line (a same-direction lane beyond it).
     pub left_dashed_white: bool,
+    /// Standard error of `offset`, m (from the fit's residuals and point count).
+    pub offset_se: f64,
+    /// Standard error of `kappa`, 1/m.
+    pub kappa_se: f64,
+    /// How much brighter than the asphalt the white markings read (median over the
+    /// marking points, 0–255 levels): the paint's own contrast in this frame.
+    pub paint_contrast: Option<f64>,
+}
+
+/// The measured quality of the front cameras' latest frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImageQuality {
+    /// Estimated noise σ (0–255), the larger of the front-wide and front-tele estimates.
+    pub noise_sigma: f64,
+    /// The front-wide frame's white level (0–255).
+    pub white: f64,
+    /// Exposure scale the thresholds use (1 in daylight).
+    pub gain: f64,
 }
 
 /// Everything perceived.
@@ -83,7 +108,7 @@ pub struct Perception {
     pub lane_offset: f64,
     /// The marking fit, when the markings were found.
     pub lane: Option<LaneSeen>,
-    /// Asphalt luminance reference.
+    /// Asphalt luminance reference just ahead of the car.
     pub road_lum: f32,
     /// The nearest object in the lane.
     pub lead: Option<LeadSeen>,
@@ -101,47 +126,171 @@ pub struct Perception {
     pub light: Option<(Lamp, f64)>,
     /// Stop sign distance.
     pub stop_sign: Option<f64>,
+    /// The frames' measured quality.
+    pub quality: ImageQuality,
 }
 
 /// Bins across the lane, m.
 const BIN: f64 = 0.1;
 const HALF_LANE_BINS: i32 = 17;
+/// From this distance on, ground points are read from the tele camera.
+const TELE_FROM_M: f64 = 13.0;
 
 struct Eyes<'a> {
     wide: Option<View<'a>>,
     tele: Option<View<'a>>,
+    /// Earlier frames of each camera with the rig's pose then (in the rig frame at `t0`),
+    /// for pooling static ground features over time; empty on clean frames.
+    past_wide: Vec<(View<'a>, [f64; 3])>,
+    past_tele: Vec<(View<'a>, [f64; 3])>,
+}
+
+/// The rig-frame point `p` (at `t0`) as seen from a rig at pose `[x, y, yaw]`.
+#[inline]
+fn into_pose(p: [f64; 3], pose: [f64; 3]) -> [f64; 3] {
+    let (dx, dy) = (p[0] - pose[0], p[1] - pose[1]);
+    let (s, c) = pose[2].sin_cos();
+    [c * dx + s * dy, -s * dx + c * dy, p[2]]
 }
 
 impl<'a> Eyes<'a> {
-    /// The colour at ground point `(x, y)`: tele when it sees it from 13 m on, else wide.
+    /// The camera that reads rig-frame point `p`: tele from 13 m on when it sees it.
     #[inline]
-    fn ground(&self, x: f64, y: f64) -> Option<[f32; 3]> {
-        self.point([x, y, 0.0])
+    fn view_for(&self, p: [f64; 3]) -> Option<&View<'a>> {
+        self.view_proj(p).map(|(v, _)| v)
     }
 
-    /// Like [`Eyes::ground`] over a 4×4 patch: for the road surface and objects on it.
+    /// [`Eyes::view_for`] with `p`'s projection `(u, v, range)` in that view.
     #[inline]
-    fn surface(&self, x: f64, y: f64) -> Option<[f32; 3]> {
+    fn view_proj(&self, p: [f64; 3]) -> Option<(&View<'a>, (f64, f64, f64))> {
+        let inside = |v: &View<'_>| {
+            v.calib.project(p).filter(|&(u, r, _)| {
+                u >= 0.0 && r >= 0.0 && u < v.width() as f64 && r < v.height() as f64
+            })
+        };
+        if p[0] >= TELE_FROM_M
+            && let Some(t) = &self.tele
+            && let Some(q) = inside(t)
+        {
+            return Some((t, q));
+        }
+        let w = self.wide.as_ref()?;
+        inside(w).map(|q| (w, q))
+    }
+
+    /// Like [`Eyes::ground`], averaged with the same ground point in the earlier frames
+    /// (ego motion from the history): for the static paint on the road, whose pixels move
+    /// between frames but whose colour does not. Each earlier frame adds independent noise
+    /// samples, so four frames halve the noise of the reading.
+    #[inline]
+    fn ground_static(&self, x: f64, y: f64, lat: f64, dep: f64) -> Option<Sample> {
         let p = [x, y, 0.0];
-        if p[0] >= 13.0
-            && let Some(t) = &self.tele
-            && let Some(c) = t.at_point_k(p, 4)
-        {
-            return Some(c);
+        let (view, proj) = self.view_proj(p)?;
+        let first = view.around_at(p, proj, lat, dep)?;
+        let past = if view.calib.id == CameraId::FrontTele {
+            &self.past_tele
+        } else {
+            &self.past_wide
+        };
+        if past.is_empty() {
+            return Some(first);
         }
-        self.wide.as_ref().and_then(|w| w.at_point_k(p, 4))
+        let (mut acc, mut n) = (first.c, 1.0f32);
+        for (v, pose) in past {
+            if let Some(q) = v.around(into_pose(p, *pose), lat, dep) {
+                for c in 0..3 {
+                    acc[c] += q.c[c];
+                }
+                n += 1.0;
+            }
+        }
+        Some(Sample {
+            c: [acc[0] / n, acc[1] / n, acc[2] / n],
+            s: first.s / n.sqrt(),
+        })
     }
 
+    /// A pooled reading of ground point `(x, y)` over about `lat × dep` metres.
     #[inline]
-    fn point(&self, p: [f64; 3]) -> Option<[f32; 3]> {
-        if p[0] >= 13.0
-            && let Some(t) = &self.tele
-            && let Some(c) = t.at_point(p)
-        {
-            return Some(c);
-        }
-        self.wide.as_ref().and_then(|w| w.at_point(p))
+    fn ground(&self, x: f64, y: f64, lat: f64, dep: f64) -> Option<Sample> {
+        self.point([x, y, 0.0], lat, dep)
     }
+
+    /// A pooled reading of the pixels at ground point `(x, y)`: 4 × 4 pixels on a clean
+    /// frame; as noise grows, wider (up to `lat` m) and then taller upward, up to the rows
+    /// where the ground `reach` m beyond the point would show. Ground with nothing on it
+    /// shows asphalt there; an object standing within `reach` shows its face. Rising from
+    /// the point keeps the patch off the nearer ground, and the reach bounds how far ahead
+    /// of an object its contact can be read.
+    #[inline]
+    fn ground_up(&self, x: f64, y: f64, lat: f64, reach: f64) -> Option<Sample> {
+        let p = [x, y, 0.0];
+        let (view, (u, v0, range)) = self.view_proj(p)?;
+        let need = f64::from((view.sigma / crate::vision::TARGET_NOISE).powi(2));
+        if need <= 16.0 {
+            return view.patch(u, v0, 4, 4);
+        }
+        let (_, v_far, _) = view.calib.project([x + reach, y, 0.0])?;
+        let cols = (need / 4.0).clamp(4.0, (lat * view.calib.fx / range).max(4.0));
+        let rows = (need / cols).clamp(4.0, (v0 - v_far + 2.0).max(4.0));
+        let half = cols / 2.0;
+        let (c, n) = view.rect(
+            (u - half).round() as isize,
+            (v0 + 2.0 - rows).round() as isize,
+            (u + half).round() as isize,
+            (v0 + 2.0).round() as isize,
+        )?;
+        Some(Sample {
+            c,
+            s: view.sigma / (n as f32).sqrt(),
+        })
+    }
+
+    /// A pooled reading around rig-frame point `p`.
+    #[inline]
+    fn point(&self, p: [f64; 3], lat: f64, dep: f64) -> Option<Sample> {
+        self.view_proj(p)
+            .and_then(|(v, proj)| v.around_at(p, proj, lat, dep))
+    }
+}
+
+/// The asphalt's expected colour as a function of distance, measured in the frame: per 1 m
+/// band, the median over a wide lateral span of the road (the ego lane and the lane to its
+/// left), kept only where it changes smoothly from the band before (fog brightens distant
+/// asphalt gradually; an object, a crossing or the end of the road changes it abruptly and
+/// is not the road's appearance).
+pub struct RoadModel {
+    x0: f64,
+    cols: Vec<Rgb>,
+    gain: f32,
+}
+
+impl RoadModel {
+    const STEP: f64 = 1.0;
+
+    /// The references at distance `x`.
+    #[inline]
+    pub fn refs(&self, x: f64) -> Refs {
+        let i = ((x - self.x0) / Self::STEP).round().max(0.0) as usize;
+        Refs {
+            road: self.cols[i.min(self.cols.len() - 1)],
+            gain: self.gain,
+        }
+    }
+
+    /// Asphalt luminance just ahead of the car.
+    pub fn near_lum(&self) -> f32 {
+        lum(self.cols[0])
+    }
+}
+
+/// The rig's pose `[x, y, yaw]` at time `t` (s, ≤ 0) from the history, when a pose lies
+/// within 20 ms of it.
+fn pose_at(h: &[EgoPose], t: f64) -> Option<[f64; 3]> {
+    h.iter()
+        .filter(|p| (p.t_s - t).abs() < 0.02)
+        .map(|p| [p.x_m, p.y_m, p.yaw_rad])
+        .next()
 }
 
 fn history_motion(h: &[EgoPose]) -> (f64, f64) {
@@ -169,16 +318,28 @@ fn history_motion(h: &[EgoPose]) -> (f64, f64) {
     (speed, if kappa.is_finite() { kappa } else { 0.0 })
 }
 
-fn find<'a>(input: &'a PlannerInput<'a>, id: CameraId, frame_from_end: usize) -> Option<View<'a>> {
+/// The view of camera `id`'s frame `frame_from_end` frames before the latest; pooled
+/// through a summed-area table when `pooled` (frames read all over), else read directly.
+fn find<'a>(
+    input: &'a PlannerInput<'a>,
+    id: CameraId,
+    frame_from_end: usize,
+    sigma: Option<f32>,
+    pooled: bool,
+) -> Option<View<'a>> {
     input
         .cameras
         .iter()
         .find(|c| c.calib.id == id)
         .and_then(|c| {
             let n = c.frames.len();
-            (n > frame_from_end).then(|| View {
-                calib: &c.calib,
-                rgb: c.frames[n - 1 - frame_from_end],
+            (n > frame_from_end).then(|| {
+                let rgb = c.frames[n - 1 - frame_from_end];
+                if pooled {
+                    View::new(&c.calib, rgb, sigma)
+                } else {
+                    View::plain(&c.calib, rgb, sigma)
+                }
             })
         })
 }
@@ -186,23 +347,80 @@ fn find<'a>(input: &'a PlannerInput<'a>, id: CameraId, frame_from_end: usize) ->
 /// Runs every perception step on `input`.
 pub fn perceive(input: &PlannerInput<'_>) -> Perception {
     let (speed, kappa_history) = history_motion(input.ego_history);
-    let eyes = Eyes {
-        wide: find(input, CameraId::FrontWide, 0),
-        tele: find(input, CameraId::FrontTele, 0),
+    // A summed-area table pays off only where patches grow large, on noisy frames; clean
+    // frames are read through small patches summed directly.
+    let latest = |id: CameraId| {
+        let v = find(input, id, 0, None, false)?;
+        if v.sigma > 6.0 {
+            let sigma = Some(v.sigma);
+            drop(v);
+            find(input, id, 0, sigma, true)
+        } else {
+            Some(v)
+        }
     };
-    let road_lum = road_reference(&eyes, kappa_history);
-    let lane = fit_lane(&eyes, kappa_history, road_lum);
+    let mut eyes = Eyes {
+        wide: latest(CameraId::FrontWide),
+        tele: latest(CameraId::FrontTele),
+        past_wide: Vec::new(),
+        past_tele: Vec::new(),
+    };
+    let sigma = eyes
+        .wide
+        .iter()
+        .chain(eyes.tele.iter())
+        .map(|v| v.sigma)
+        .fold(0f32, f32::max);
+    // With noise, the earlier frames are pooled too (static features only).
+    if sigma > 6.0 {
+        let wide_sigma = eyes.wide.as_ref().map(|v| v.sigma);
+        let tele_sigma = eyes.tele.as_ref().map(|v| v.sigma);
+        for back in 1..4 {
+            let Some(pose) = pose_at(input.ego_history, -0.1 * back as f64) else {
+                continue;
+            };
+            if let Some(v) = find(input, CameraId::FrontWide, back, wide_sigma, false) {
+                eyes.past_wide.push((v, pose));
+            }
+            if let Some(v) = find(input, CameraId::FrontTele, back, tele_sigma, false) {
+                eyes.past_tele.push((v, pose));
+            }
+        }
+    }
+    let white = eyes
+        .wide
+        .as_ref()
+        .or(eyes.tele.as_ref())
+        .map_or(255.0, |v| v.white);
+    let gain = gain_of(white);
+    let quality = ImageQuality {
+        noise_sigma: f64::from(sigma),
+        white: f64::from(white),
+        gain: f64::from(gain),
+    };
+    let prior = |x: f64| 0.5 * kappa_history * x * x;
+    let road = road_model(&eyes, &prior, gain);
+    let lane = fit_lane(&eyes, kappa_history, &road);
     let (kappa, lane_width, lane_offset) = match lane {
-        Some(l) => (
-            0.5 * (l.kappa + kappa_history),
-            l.width.clamp(2.8, 4.2),
-            l.offset,
-        ),
+        Some(l) => {
+            // Inverse-variance fusion of the markings' curvature with the history's (whose
+            // uncertainty is that of a curvature held over the next second or two), and of
+            // the offset with the prior of a car that keeps its lane (centred, ±0.3 m).
+            // A clean fit weighs as much as the history; a noisy one less, in proportion.
+            let var_h = 0.0015f64.powi(2);
+            let var_m = l.kappa_se.powi(2);
+            let w = 0.5 * var_h / (var_h + var_m);
+            let kappa = w * l.kappa + (1.0 - w) * kappa_history;
+            let var_o = l.offset_se.powi(2).max(1e-8);
+            let var_p = 0.3f64.powi(2);
+            let offset = (l.offset / var_o) / (1.0 / var_o + 1.0 / var_p);
+            (kappa, l.width.clamp(2.8, 4.2), offset)
+        }
         None => (kappa_history, 3.5, 0.0),
     };
     let centre = |x: f64| lane_offset + 0.5 * kappa * x * x;
-    // Occupancy of the ego lane: first blocked distance per lateral bin.
-    let (stop_line, zebra) = transverse_marks(&eyes, &centre, road_lum);
+    let paint = lane.and_then(|l| l.paint_contrast).map(|c| c as f32);
+    let (stop_line, zebra) = transverse_marks(&eyes, &centre, &road, paint);
     // Ground samples are trusted while the lane model's lateral sag stays within 3 m.
     let x_max = if kappa.abs() > 1e-6 {
         (6.0 / kappa.abs()).sqrt().min(70.0)
@@ -219,14 +437,14 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
             || zebra.is_some_and(|z| x > z - 0.5 && x < z + 4.0)
     };
     let inner = lane_width / 2.0 - 0.4;
-    let ego_bins = first_blocked(&eyes, &xs, &centre, 0.0, inner, road_lum, &painted);
-    let left_bins = first_blocked(&eyes, &xs, &centre, lane_width, 1.0, road_lum, &painted);
+    let ego_bins = first_blocked(&eyes, &xs, &centre, 0.0, inner, &road, &painted);
+    let left_bins = first_blocked(&eyes, &xs, &centre, lane_width, 1.0, &road, &painted);
     let road_end = road_end(&ego_bins, &left_bins);
     let right_branch =
-        road_end.is_some_and(|x_end| right_branch(&eyes, &centre, x_end, lane_width, road_lum));
+        road_end.is_some_and(|x_end| right_branch(&eyes, &centre, x_end, lane_width, &road));
     let lead = road_end
         .is_none()
-        .then(|| lead_of(input, &eyes, &ego_bins, &centre, road_lum, speed))
+        .then(|| lead_of(input, &eyes, &ego_bins, &centre, &road, speed))
         .flatten()
         .or_else(|| {
             // With a road end, only objects clearly nearer than it count.
@@ -237,7 +455,7 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
                         *b = f64::INFINITY;
                     }
                 }
-                lead_of(input, &eyes, &bins, &centre, road_lum, speed)
+                lead_of(input, &eyes, &bins, &centre, &road, speed)
             })
         });
     let left_dashed = lane.is_some_and(|l| l.left_dashed_white);
@@ -256,7 +474,7 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
         l
     });
     let light = traffic_light(&eyes);
-    let stop_sign = stop_sign(&eyes);
+    let stop_sign = stop_sign(&eyes, gain);
     Perception {
         speed,
         kappa_history,
@@ -264,7 +482,7 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
         lane_width,
         lane_offset,
         lane,
-        road_lum,
+        road_lum: road.near_lum(),
         lead,
         left_lane_free,
         road_end,
@@ -273,54 +491,111 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
         zebra,
         light,
         stop_sign,
+        quality,
     }
 }
 
-/// Median luminance of grey ground just ahead of the car.
-fn road_reference(eyes: &Eyes<'_>, kappa: f64) -> f32 {
-    let mut v = Vec::with_capacity(64);
-    for i in 0..8 {
-        let x = 5.0 + 0.6 * i as f64;
-        for j in -3..=3 {
-            let y = 0.5 * kappa * x * x + 0.25 * j as f64;
-            if let Some(c) = eyes.surface(x, y)
-                && chroma(c) < 30.0
-            {
-                v.push(lum(c));
+/// Per-channel median.
+fn median_rgb(v: &mut [Rgb]) -> Option<Rgb> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut out = [0f32; 3];
+    let mid = v.len() / 2;
+    for c in 0..3 {
+        v.select_nth_unstable_by(mid, |a, b| a[c].total_cmp(&b[c]));
+        out[c] = v[mid][c];
+    }
+    Some(out)
+}
+
+/// Measures the [`RoadModel`]: the near reference from grey ground 5–9 m ahead, then one
+/// band per metre out to 70 m.
+fn road_model(eyes: &Eyes<'_>, centre: &dyn Fn(f64) -> f64, gain: f32) -> RoadModel {
+    let band = |x0: f64, x1: f64, lo: f64, hi: f64| -> Option<Rgb> {
+        let mut v = Vec::with_capacity(48);
+        let mut x = x0;
+        while x < x1 {
+            let mut y = lo;
+            while y <= hi {
+                if let Some(s) = eyes.ground(x, centre(x) + y, 0.35, 0.6) {
+                    v.push(s.c);
+                }
+                y += 0.4;
+            }
+            x += 0.5;
+        }
+        median_rgb(&mut v)
+    };
+    // The near reference: the ego lane's interior, 5–9 m ahead.
+    let near = band(5.0, 9.0, -1.2, 1.2).unwrap_or([90.0, 90.0, 95.0]);
+    let x0 = 5.0;
+    let mut cols = vec![near];
+    let mut last = near;
+    let mut last_x = x0;
+    let mut x = x0 + RoadModel::STEP;
+    while x <= 70.5 {
+        if let Some(c) = band(x, x + RoadModel::STEP, -1.4, 5.0) {
+            let dx = (x - last_x) as f32;
+            let d = [c[0] - last[0], c[1] - last[1], c[2] - last[2]];
+            // Smooth drift only: at most 3.5 levels per metre in luminance (Koschmieder
+            // fog at visibility 160 m brightens asphalt by under 3 per metre), with the
+            // channels moving together.
+            let dx = dx.min(3.0);
+            if lum(d).abs() <= 4.0 * gain + 3.5 * dx && chroma(d) <= 8.0 * gain.max(0.5) + dx {
+                last = c;
+                last_x = x;
             }
         }
+        cols.push(last);
+        x += RoadModel::STEP;
     }
-    if v.is_empty() {
-        return 90.0;
-    }
-    v.sort_by(f32::total_cmp);
-    v[v.len() / 2]
+    RoadModel { x0, cols, gain }
 }
 
 /// Fits `y = a_side + c·x²` to the marking points on both sides of the ego lane.
-fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: f32) -> Option<LaneSeen> {
+fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: &RoadModel) -> Option<LaneSeen> {
     let mut pts: Vec<(f64, f64, bool)> = Vec::new(); // (x, y, left)
     let (mut left_white, mut left_yellow, mut left_hits, mut rows) = (0, 0, 0, 0);
+    let mut contrasts: Vec<f32> = Vec::new();
     let mut x = 5.0;
     while x <= 34.0 {
         rows += 1;
         let yc = 0.5 * kappa_prior * x * x;
+        let refs = road.refs(x);
+        // Paint is pooled along the line (1.5 m of it) and narrowly across it.
+        let dep = (0.1 * x).clamp(1.0, 2.5);
         for (left, lo, hi) in [(false, -2.5, -0.95), (true, 0.95, 2.5)] {
             // Runs of paint samples in the window; the run nearest the expected boundary
             // (about half a lane from the centre), at most 0.35 m wide, is the marking.
-            let mut runs: Vec<(f64, f64, usize, usize)> = Vec::new(); // (start, end, n, yellow)
+            // (start, end, n, yellow, brightest luminance above the asphalt)
+            let mut runs: Vec<(f64, f64, usize, usize, f32)> = Vec::new();
             let mut y = lo;
             while y <= hi {
-                if let Some(c) = eyes.ground(x, yc + y) {
-                    let yl = is_yellow_paint(c, road);
-                    if yl || is_white_paint(c, road) {
+                // Pooled over the earlier frames too, unless the latest frame alone shows
+                // plain asphalt (most of the window).
+                let first = eyes.ground(x, yc + y, 0.06, dep);
+                let plain_asphalt = first.is_some_and(|s| {
+                    lum(s.c) - lum(refs.road) < 20.0 * refs.gain
+                        && s.c[0] - s.c[2] < 30.0 * refs.gain
+                });
+                let pooled = if plain_asphalt {
+                    first
+                } else {
+                    eyes.ground_static(x, yc + y, 0.06, dep)
+                };
+                if let Some(s) = pooled {
+                    let yl = is_yellow_paint(s, &refs);
+                    if yl || is_white_paint(s, &refs) {
+                        let above = lum(s.c) - lum(refs.road);
                         match runs.last_mut() {
                             Some(r) if y - r.1 < 0.06 => {
                                 r.1 = y;
                                 r.2 += 1;
                                 r.3 += usize::from(yl);
+                                r.4 = r.4.max(above);
                             }
-                            _ => runs.push((y, y, 1, usize::from(yl))),
+                            _ => runs.push((y, y, 1, usize::from(yl), above)),
                         }
                     }
                 }
@@ -332,8 +607,11 @@ fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: f32) -> Option<LaneSeen> {
                 let db = (0.5 * (b.0 + b.1) - expect).abs();
                 da.total_cmp(&db)
             });
-            if let Some(&(a, b, n, yellow)) = best {
+            if let Some(&(a, b, n, yellow, above)) = best {
                 let ym = 0.5 * (a + b);
+                if yellow * 2 <= n && x < 20.0 {
+                    contrasts.push(above);
+                }
                 pts.push((x, yc + ym, left));
                 if left {
                     left_hits += 1;
@@ -347,7 +625,7 @@ fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: f32) -> Option<LaneSeen> {
         }
         x += if x < 15.0 { 0.5 } else { 1.0 };
     }
-    let fit = |pts: &[(f64, f64, bool)]| -> Option<(f64, f64, f64)> {
+    let fit = |pts: &[(f64, f64, bool)]| -> Option<(f64, f64, f64, f64, f64)> {
         // Unknowns aR, aL, c. Normal equations.
         let (mut nr, mut nl) = (0.0, 0.0);
         let (mut sr, mut sl) = (0.0, 0.0);
@@ -376,9 +654,15 @@ fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: f32) -> Option<LaneSeen> {
             return None;
         }
         let c = (qy - qr * sr / nr - ql * sl / nl) / den;
-        Some(((sr - c * qr) / nr, (sl - c * ql) / nl, c))
+        Some((
+            (sr - c * qr) / nr,
+            (sl - c * ql) / nl,
+            c,
+            1.0 / nr + 1.0 / nl,
+            den,
+        ))
     };
-    let (ar, al, c) = fit(&pts)?;
+    let (ar, al, c, _, _) = fit(&pts)?;
     // One round of outlier removal.
     let kept: Vec<(f64, f64, bool)> = pts
         .iter()
@@ -388,17 +672,34 @@ fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: f32) -> Option<LaneSeen> {
             (y - a - c * x * x).abs() < 0.35
         })
         .collect();
-    let (ar, al, c) = fit(&kept)?;
+    let (ar, al, c, inv_n, den) = fit(&kept)?;
     let width = al - ar;
     if !(2.6..=4.6).contains(&width) || kept.len() < 10 {
         return None;
     }
+    // Residual spread → standard errors of the offset (mean of the two sides) and of 2c.
+    let rss: f64 = kept
+        .iter()
+        .map(|&(x, y, left)| {
+            let a = if left { al } else { ar };
+            (y - a - c * x * x).powi(2)
+        })
+        .sum();
+    let s2 = (rss / (kept.len() as f64 - 3.0).max(1.0)).max(0.02f64.powi(2));
+    let offset_se = (0.25 * s2 * inv_n).sqrt();
+    let kappa_se = 2.0 * (s2 / den.max(1e-9)).sqrt();
     Some(LaneSeen {
         kappa: 2.0 * c,
         offset: 0.5 * (al + ar),
         width,
         points: kept.len(),
         left_dashed_white: left_white > left_yellow && left_hits * 10 < rows * 8,
+        offset_se,
+        kappa_se,
+        paint_contrast: (contrasts.len() >= 4).then(|| {
+            contrasts.sort_by(f32::total_cmp);
+            f64::from(contrasts[contrasts.len() / 2])
+        }),
     })
 }
 
@@ -413,15 +714,28 @@ fn sample_distances() -> Vec<f64> {
     xs
 }
 
+/// Is the ground at `(x, y)` blocked (not road)? `painted` marks distances with transverse
+/// paint, where grey brighter than asphalt is paint seen edge-on.
+#[inline]
+fn blocked_at(eyes: &Eyes<'_>, road: &RoadModel, x: f64, y: f64, lat: f64, painted: bool) -> bool {
+    let refs = road.refs(x);
+    eyes.ground_up(x, y, lat, 4.0).is_some_and(|s| {
+        let paint_blend = painted
+            && chroma(s.c) < 30.0 * refs.gain.max(0.5) + 4.5 * s.s
+            && lum(s.c) > lum(refs.road) - 10.0 * refs.gain;
+        !(is_road(s, &refs) || paint_blend)
+    })
+}
+
 /// For each lateral bin of the lane centred `shift` m left of the ego lane, the first distance
-/// at which the ground is not road (two consecutive samples), or `+inf`.
+/// at which the ground is not road (four samples in a row), or `+inf`.
 fn first_blocked(
     eyes: &Eyes<'_>,
     xs: &[f64],
     centre: &dyn Fn(f64) -> f64,
     shift: f64,
     inner: f64,
-    road: f32,
+    road: &RoadModel,
     painted: &dyn Fn(f64) -> bool,
 ) -> Vec<f64> {
     (-HALF_LANE_BINS..=HALF_LANE_BINS)
@@ -430,14 +744,14 @@ fn first_blocked(
                 return f64::NAN; // not sampled: on or beyond the lane's markings
             }
             let y = shift + f64::from(b) * BIN;
+            // Pool across at most 0.5 m, and never onto the lane's markings (a blend of
+            // paint and asphalt is neither).
+            let lat = (2.0 * (inner + 0.2 - (f64::from(b) * BIN).abs())).clamp(0.1, 0.25);
             // Four blocked samples in a row: an object occludes the ground behind it, a
             // painted line seen at a grazing angle does not.
             let mut run = 0;
             for (i, &x) in xs.iter().enumerate() {
-                let blocked = eyes.surface(x, centre(x) + y).is_some_and(|c| {
-                    let paint_blend = painted(x) && chroma(c) < 30.0 && lum(c) > road - 10.0;
-                    !(is_road(c, road) || paint_blend)
-                });
+                let blocked = blocked_at(eyes, road, x, centre(x) + y, lat, painted(x));
                 run = if blocked { run + 1 } else { 0 };
                 if run == 4 {
                     return xs[i - 3];
@@ -462,14 +776,15 @@ fn road_end(ego: &[f64], left: &[f64]) -> Option<f64> {
         return None;
     }
     let finite: Vec<f64> = all.iter().copied().filter(|x| x.is_finite()).collect();
-    if finite.len() * 10 < all.len() * 9 {
+    // Noise hides some of the far edge; three quarters of the bins must see it.
+    if finite.len() * 4 < all.len() * 3 {
         return None;
     }
     let mut s = finite.clone();
     s.sort_by(f64::total_cmp);
     let med = s[s.len() / 2];
     let near = s.iter().filter(|&&x| (x - med).abs() < 3.0).count();
-    (near * 10 >= all.len() * 8).then_some(med)
+    (near * 10 >= all.len() * 7).then_some(med)
 }
 
 /// Asphalt to the right of the lane, a little before the road end.
@@ -478,16 +793,17 @@ fn right_branch(
     centre: &dyn Fn(f64) -> f64,
     x_end: f64,
     w: f64,
-    road: f32,
+    road: &RoadModel,
 ) -> bool {
     let (mut road_n, mut n) = (0, 0);
     let mut x = x_end - 2.0 * w;
     while x < x_end - 1.0 {
+        let refs = road.refs(x);
         for k in 0..6 {
             let y = centre(x) - w / 2.0 - 1.5 - 0.5 * k as f64;
-            if let Some(c) = eyes.ground(x, y) {
+            if let Some(s) = eyes.ground(x, y, 0.4, 0.5) {
                 n += 1;
-                road_n += usize::from(is_road(c, road));
+                road_n += usize::from(is_road(s, &refs));
             }
         }
         x += 0.5;
@@ -500,7 +816,7 @@ fn lead_of(
     eyes: &Eyes<'_>,
     bins: &[f64],
     centre: &dyn Fn(f64) -> f64,
-    road: f32,
+    road: &RoadModel,
     ego_speed: f64,
 ) -> Option<LeadSeen> {
     let finite: Vec<(f64, f64)> = bins
@@ -509,19 +825,21 @@ fn lead_of(
         .filter(|(_, x)| x.is_finite())
         .map(|(i, &x)| ((i as i32 - HALF_LANE_BINS) as f64 * BIN, x))
         .collect();
-    if finite.len() < 2 {
-        return None;
-    }
-    let contact = finite.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
-    // The object: bins blocked within 6 m of the nearest contact.
-    let obj: Vec<(f64, f64)> = finite
-        .iter()
-        .copied()
-        .filter(|p| p.1 < contact + 6.0)
-        .collect();
-    if obj.len() < 2 {
-        return None;
-    }
+    // The object: the nearest contact with a blocked neighbour bin and at least three bins
+    // blocked within 6 m of it; a lone blocked bin is a speck, not a road user.
+    let mut order: Vec<f64> = finite.iter().map(|p| p.1).collect();
+    order.sort_by(f64::total_cmp);
+    let (contact, obj) = order.iter().find_map(|&c| {
+        let obj: Vec<(f64, f64)> = finite
+            .iter()
+            .copied()
+            .filter(|p| p.1 >= c && p.1 < c + 6.0)
+            .collect();
+        // Lateral neighbours of the contact bin within the object.
+        let at = finite.iter().find(|p| p.1 == c)?.0;
+        let near = obj.iter().filter(|p| (p.0 - at).abs() <= 3.5 * BIN).count();
+        (near >= 2 && obj.len() >= 3).then_some((c, obj))
+    })?;
     let right_edge = obj.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
     let left_edge = obj.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
     // Widths at body height (0.5 m) and cabin/torso height (1.3 m), just behind the contact:
@@ -529,11 +847,21 @@ fn lead_of(
     let xw = contact + 0.4;
     let mid = 0.5 * (left_edge + right_edge);
     let width_at = |z: f64| {
+        // What lies behind a point at height z seen past the object: the ground where the
+        // line of sight meets it.
+        let cam_h = 1.6;
+        let behind = if z < cam_h - 0.05 {
+            (xw * cam_h / (cam_h - z)).min(70.0)
+        } else {
+            70.0
+        };
+        let refs = road.refs(behind);
         // The contiguous run of object pixels through the object's middle (background seen
         // past a narrow object is usually not contiguous with it).
         let hit = |b: i32| {
             let y = centre(xw) + mid + f64::from(b) * BIN;
-            eyes.point([xw, y, z]).is_some_and(|c| is_object(c, road))
+            eyes.point([xw, y, z], 0.15, if z > 1.0 { 0.8 } else { 0.5 })
+                .is_some_and(|s| is_object(s, &refs))
         };
         let start = (-3..=3).find(|&b| hit(b));
         let Some(b0) = start else { return 0.0 };
@@ -554,8 +882,22 @@ fn lead_of(
     } else {
         ObjectKind::Person
     };
+    // Confidence: the face just above the contact, pooled over the object's width, against
+    // the asphalt it hides.
+    let confidence = {
+        let refs = road.refs(contact);
+        let y0 = centre(contact) + mid;
+        eyes.point(
+            [contact + 0.2, y0, 0.45],
+            (left_edge - right_edge).max(0.3),
+            0.5,
+        )
+        .map_or(0.0, |s| {
+            f64::from((road_distance(s, &refs) - 0.5).clamp(0.0, 1.0))
+        })
+    };
     let braking = brake_lamps(eyes, contact, centre);
-    let speed = lead_speed(input, centre, road, contact, ego_speed, &obj);
+    let speed = lead_speed(input, eyes, centre, road, contact, ego_speed, &obj);
     Some(LeadSeen {
         contact_x: contact,
         gap: contact - REAR_WHEEL_TO_BUMPER - fogline_types::motion::EGO_FRONT_M,
@@ -565,25 +907,22 @@ fn lead_of(
         width_m,
         right_edge,
         left_edge,
+        confidence,
     })
 }
 
 /// How far a vehicle's rear wheels touch the ground ahead of its rear bumper, m.
 const REAR_WHEEL_TO_BUMPER: f64 = 0.57;
 
-/// Clearly not the road surface (a tighter test than [`is_road`], for pixels above ground).
-/// (Only used above the ground, where there is no paint and, below the camera, no sky.)
-fn is_object(c: [f32; 3], road: f32) -> bool {
-    (lum(c) - road).abs() > 14.0 || chroma(c) > 24.0
-}
-
+/// Lit red lamps on the rear of the object whose contact is at `contact`: patches sized to a
+/// lamp (about 0.2 m) or smaller, scanned over the rear face.
 fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bool {
-    let view = if contact >= 13.0 {
-        &eyes.tele
+    let view = if contact >= TELE_FROM_M {
+        eyes.tele.as_ref().or(eyes.wide.as_ref())
     } else {
-        &eyes.wide
+        eyes.wide.as_ref()
     };
-    let Some(view) = view.as_ref().or(eyes.wide.as_ref()) else {
+    let Some(view) = view else {
         return false;
     };
     let x = contact - REAR_WHEEL_TO_BUMPER;
@@ -595,30 +934,36 @@ fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bo
     ) else {
         return false;
     };
-    let (u0, u1) = (
-        a.0.min(b.0).max(0.0) as usize,
-        a.0.max(b.0).max(0.0) as usize,
-    );
-    let (v0, v1) = (
-        a.1.min(b.1).max(0.0) as usize,
-        a.1.max(b.1).max(0.0) as usize,
-    );
-    let (w, h) = (view.width(), view.height());
-    let mut n = 0;
-    for v in v0..=v1.min(h - 1) {
-        for u in u0..=u1.min(w - 1) {
-            n += usize::from(is_red_lamp(view.pixel(u, v)) && is_red_lamp(view.patch2(u, v)));
+    let lamp_px = 0.2 * view.calib.fx / (x - view.calib.x_m).max(1.0);
+    let k = lamp_patch(view.sigma, lamp_px);
+    let (w, h) = (view.width() as f64, view.height() as f64);
+    let (u0, u1) = (a.0.min(b.0).max(0.0), a.0.max(b.0).min(w - 1.0));
+    let (v0, v1) = (a.1.min(b.1).max(0.0), a.1.max(b.1).min(h - 1.0));
+    let step = (k as f64 / 2.0).max(1.0);
+    let mut n = 0.0;
+    let mut v = v0;
+    while v <= v1 {
+        let mut u = u0;
+        while u <= u1 {
+            if let Some(s) = view.patch(u + 0.5, v + 0.5, k, k)
+                && lamp_colour(s, view.white) == Some(LampColour::Red)
+            {
+                n += step * step;
+            }
+            u += step;
         }
+        v += step;
     }
-    n >= 2
+    n >= 2.0
 }
 
 /// Lead speed from the contact distance in the four frames (least squares over time), in the
 /// rig frame at `t0` using the ego history for the earlier frames.
 fn lead_speed(
     input: &PlannerInput<'_>,
+    eyes: &Eyes<'_>,
     centre: &dyn Fn(f64) -> f64,
-    road: f32,
+    road: &RoadModel,
     contact0: f64,
     ego_speed: f64,
     obj: &[(f64, f64)],
@@ -627,14 +972,25 @@ fn lead_speed(
     let hist = input.ego_history;
     let mut ts = Vec::new();
     let mut xs = Vec::new();
+    // Only the camera that sees the lead is needed in the earlier frames.
+    let (id, sigma) = if contact0 >= TELE_FROM_M && eyes.tele.is_some() {
+        (CameraId::FrontTele, eyes.tele.as_ref().map(|v| v.sigma))
+    } else {
+        (CameraId::FrontWide, eyes.wide.as_ref().map(|v| v.sigma))
+    };
     for back in 0..4 {
-        let eyes = Eyes {
-            wide: find(input, CameraId::FrontWide, back),
-            tele: find(input, CameraId::FrontTele, back),
+        let older;
+        let view = if back == 0 {
+            if id == CameraId::FrontTele {
+                eyes.tele.as_ref()
+            } else {
+                eyes.wide.as_ref()
+            }
+        } else {
+            older = find(input, id, back, sigma, false);
+            older.as_ref()
         };
-        if eyes.wide.is_none() && eyes.tele.is_none() {
-            continue;
-        }
+        let Some(view) = view else { continue };
         // Ego pose at that frame (0.1 s per frame back).
         let t = -0.1 * back as f64;
         let ego_x = hist.iter().rev().nth(back).map_or(ego_speed * t, |p| p.x_m);
@@ -645,9 +1001,9 @@ fn lead_speed(
             let mut prev = false;
             let mut x = lo.max(4.5);
             while x <= hi {
-                let blocked = eyes
-                    .surface(x, centre(x + ego_x) + y)
-                    .is_some_and(|c| !is_road(c, road));
+                let p = [x, centre(x + ego_x) + y, 0.0];
+                let refs = road.refs(x + ego_x);
+                let blocked = view.around(p, 0.3, 0.4).is_some_and(|s| !is_road(s, &refs));
                 if blocked && prev {
                     best = best.min(x - 0.1);
                     break;
@@ -676,33 +1032,67 @@ fn lead_speed(
 }
 
 /// Stop line (a solid white band across the lane) and zebra (half-covered bands over ≥ 2 m)
-/// along the lane centre.
+/// along the lane centre. At each distance the share of white across the lane is read from
+/// the mean brightness of the ground strip ±1.2 m around the centre (one pooled strip of
+/// pixels), between the asphalt's level and the paint's.
 fn transverse_marks(
     eyes: &Eyes<'_>,
     centre: &dyn Fn(f64) -> f64,
-    road: f32,
+    road: &RoadModel,
+    paint: Option<f32>,
 ) -> (Option<f64>, Option<f64>) {
-    let mut profile = Vec::new();
+    // The paint's contrast near the car: as measured on the lane markings, else what white
+    // paint on asphalt reads in daylight scaled by the exposure.
+    let near_contrast = paint.unwrap_or(140.0 * road.gain).max(20.0 * road.gain);
+    let mut profile: Vec<(f64, f64)> = Vec::new();
     let mut x = 4.5;
     while x <= 60.0 {
-        let (mut white, mut n) = (0, 0);
-        for k in -6..=6 {
-            if let Some(c) = eyes.ground(x, centre(x) + 0.2 * f64::from(k)) {
-                n += 1;
-                white += usize::from(is_white_paint(c, road));
+        let refs = road.refs(x);
+        let yc = centre(x);
+        // Fog pulls paint and asphalt toward the airlight alike, shrinking their contrast
+        // as the asphalt brightens with distance.
+        let fog = ((lum(refs.road) - road.near_lum()) / 140.0).clamp(0.0, 0.9);
+        let contrast = near_contrast * (1.0 - fog);
+        // Eight strips of 0.3 m across the lane; strips that a road user hides (clearly
+        // darker or more coloured than asphalt and paint) are left out.
+        let (mut sum, mut n) = (0.0, 0);
+        for k in 0..8 {
+            let y0 = yc - 1.2 + 0.3 * f64::from(k);
+            let Some(s) = strip_mean(eyes, x, y0, y0 + 0.3, 0.1) else {
+                continue;
+            };
+            let se = s.s / 3f32.sqrt();
+            let d = lum(s.c) - lum(refs.road);
+            let dc = [
+                s.c[0] - refs.road[0],
+                s.c[1] - refs.road[1],
+                s.c[2] - refs.road[2],
+            ];
+            if d < -(20.0 * refs.gain + 3.0 * se)
+                || chroma(dc) > 40.0 * refs.gain.max(0.5) + 4.5 * s.s
+            {
+                continue;
             }
+            // Noise makes the share uncertain; shrink it toward "none" by one standard error.
+            sum += f64::from(((d - se) / contrast).clamp(0.0, 1.0));
+            n += 1;
         }
-        profile.push((x, if n > 0 { white as f64 / n as f64 } else { 0.0 }));
+        let share = if n >= 3 {
+            sum / f64::from(n)
+        } else {
+            profile.last().map_or(0.0, |p| p.1)
+        };
+        profile.push((x, share));
         x += 0.1;
     }
     let mut stop = None;
     let mut zebra = None;
     let mut i = 0;
     while i < profile.len() {
-        if profile[i].1 >= 0.75 {
+        if profile[i].1 >= 0.7 {
             let start = profile[i].0;
             let mut j = i;
-            while j < profile.len() && profile[j].1 >= 0.75 {
+            while j < profile.len() && profile[j].1 >= 0.7 {
                 j += 1;
             }
             let len = profile[j - 1].0 - start;
@@ -712,7 +1102,7 @@ fn transverse_marks(
             i = j;
             continue;
         }
-        if (0.25..0.75).contains(&profile[i].1) && zebra.is_none() {
+        if (0.25..0.7).contains(&profile[i].1) && zebra.is_none() {
             let start = profile[i].0;
             let mut j = i;
             while j < profile.len() && (0.2..0.8).contains(&profile[j].1) {
@@ -729,60 +1119,124 @@ fn transverse_marks(
     (stop, zebra)
 }
 
-/// Lit lamps above the horizon: the colour with the most pixels, and a distance from the
-/// lamp's elevation (signal heads hang about 5 m up).
+/// The mean over the ground strip from `(x, y0)` to `(x, y1)`, `dep` m deep: one rectangle of
+/// pixels in the camera that reads distance `x`.
+fn strip_mean(eyes: &Eyes<'_>, x: f64, y0: f64, y1: f64, dep: f64) -> Option<Sample> {
+    let view = eyes.view_for([x, 0.5 * (y0 + y1), 0.0])?;
+    let (ua, va, _) = view.calib.project([x, y0, 0.0])?;
+    let (ub, vb, _) = view.calib.project([x, y1, 0.0])?;
+    let rows = (view.calib.fy * view.calib.z_m * dep / (x * x)).max(1.0);
+    let v = 0.5 * (va + vb);
+    let (u0, u1) = (ua.min(ub), ua.max(ub));
+    let y0p = (v - rows / 2.0).round() as isize;
+    let (c, n) = view.rect(
+        u0.round() as isize,
+        y0p,
+        u1.round() as isize,
+        y0p + rows.round().max(1.0) as isize,
+    )?;
+    Some(Sample {
+        c,
+        s: view.sigma / (n as f32).sqrt(),
+    })
+}
+
+/// The side of the square patch that reads a lamp `lamp_px` pixels across: enough pixels
+/// to quiet noise `sigma`, but well inside the lamp (at most 60 % of it) so that the
+/// patch's mean is the lamp's colour and not a mix with its housing.
+fn lamp_patch(sigma: f32, lamp_px: f64) -> usize {
+    let want = (f64::from(sigma) / 6.0).ceil().max(1.0);
+    want.min((0.6 * lamp_px).floor()).max(1.0) as usize
+}
+
+/// The mean of the `k × k` block whose top-left pixel is `(u, v)` (the pixel itself for
+/// `k = 1`).
+#[inline]
+fn block(view: &View<'_>, u: usize, v: usize, k: usize) -> Option<Sample> {
+    if k == 1 {
+        return Some(Sample {
+            c: view.pixel(u, v),
+            s: view.sigma,
+        });
+    }
+    view.rect(u as isize, v as isize, (u + k) as isize, (v + k) as isize)
+        .map(|(c, n)| Sample {
+            c,
+            s: view.sigma / (n as f32).sqrt(),
+        })
+}
+
+/// Lamp-coloured blocks of a view's region: the block side follows the noise (so a block's
+/// mean is clean enough to read its hue) and is at most `max_k` pixels.
+fn lamp_blocks(
+    view: &View<'_>,
+    u_range: (usize, usize),
+    v_range: (usize, usize),
+    max_k: usize,
+) -> (usize, Vec<(LampColour, usize, usize)>) {
+    let k = lamp_patch(view.sigma, max_k as f64 / 0.6);
+    let mut out = Vec::new();
+    let mut v = v_range.0;
+    while v + k <= v_range.1 {
+        let mut u = u_range.0;
+        while u + k <= u_range.1 {
+            if let Some(s) = block(view, u, v, k)
+                && let Some(col) = lamp_colour(s, view.white)
+            {
+                out.push((col, u, v));
+            }
+            u += k;
+        }
+        v += k;
+    }
+    (k, out)
+}
+
+/// Lit lamps above the horizon: the colour with the most lamp pixels in one compact
+/// cluster, and a distance from the lamp's elevation (signal heads hang about 5 m up).
 fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
     for view in [&eyes.tele, &eyes.wide].into_iter().flatten() {
         let cy = view.calib.cy;
         let top = (cy - 2.0).max(0.0) as usize;
-        let (mut r, mut g, mut a) = (Vec::new(), Vec::new(), Vec::new());
         let w = view.width();
         let lo = (w as f64 * 0.2) as usize;
         let hi = (w as f64 * 0.8) as usize;
-        for v in 0..top {
-            for u in lo..hi {
-                let c = view.pixel(u, v);
-                if c[0] < 190.0 && c[1] < 180.0 {
-                    continue;
-                }
-                // Confirmed on the 2×2 mean: a lit lamp is a patch, noise is a speck.
-                let m = view.patch2(u, v);
-                if is_red_lamp(c) && is_red_lamp(m) {
-                    r.push((u, v));
-                } else if is_green_lamp(c) && is_green_lamp(m) {
-                    g.push((u, v));
-                } else if is_amber_lamp(c) && is_amber_lamp(m) {
-                    a.push((u, v));
-                }
-            }
-        }
+        // Signal heads (lamps 4.9–5.5 m up) seen from 8 m or further lie within these rows.
+        let rows_up = (view.calib.fy * (5.6 - view.calib.z_m) / 8.0).ceil();
+        let first = (cy - rows_up).max(0.0) as usize;
+        let (k, blocks) = lamp_blocks(view, (lo, hi), (first, top), 3);
+        let reach = 6usize.max(2 * k);
         // The largest compact cluster of each colour: (pixels, mean row).
-        let compact = |pts: Vec<(usize, usize)>| -> (usize, f64) {
+        let compact = |col: LampColour| -> (usize, f64) {
+            let pts: Vec<(usize, usize)> = blocks
+                .iter()
+                .filter(|b| b.0 == col)
+                .map(|b| (b.1, b.2))
+                .collect();
             let mut best: (usize, f64) = (0, 0.0);
             for &(u0, v0) in pts.iter().take(400) {
                 let near: Vec<&(usize, usize)> = pts
                     .iter()
-                    .filter(|p| p.0.abs_diff(u0) <= 6 && p.1.abs_diff(v0) <= 6)
+                    .filter(|p| p.0.abs_diff(u0) <= reach && p.1.abs_diff(v0) <= reach)
                     .collect();
-                if near.len() > best.0 {
-                    let vm = near.iter().map(|p| p.1 as f64).sum::<f64>() / near.len() as f64;
-                    best = (near.len(), vm);
+                if near.len() * k * k > best.0 {
+                    let vm = near.iter().map(|p| p.1 as f64).sum::<f64>() / near.len() as f64
+                        + k as f64 / 2.0;
+                    best = (near.len() * k * k, vm);
                 }
             }
             best
         };
-        let (r, g, a) = (compact(r), compact(g), compact(a));
         let best = [
-            (Lamp::Red, r, 5.52),
-            (Lamp::Amber, a, 5.2),
-            (Lamp::Green, g, 4.88),
+            (Lamp::Red, compact(LampColour::Red), 5.52),
+            (Lamp::Amber, compact(LampColour::Amber), 5.2),
+            (Lamp::Green, compact(LampColour::Green), 4.88),
         ]
         .into_iter()
         .max_by_key(|(_, (n, _), _)| *n)?;
         let (lamp, (n, vmean), h) = best;
         if n >= 3 {
-            let v = vmean + 0.5;
-            let elev = (cy - v) / view.calib.fy;
+            let elev = (cy - vmean) / view.calib.fy;
             let dist = if elev > 1e-3 {
                 (h - view.calib.z_m) / elev
             } else {
@@ -794,20 +1248,34 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
     None
 }
 
-/// A stop sign: a compact patch of sign red, right of centre, well above the horizon.
-fn stop_sign(eyes: &Eyes<'_>) -> Option<f64> {
+/// A stop sign: a compact patch of sign red right of centre, well above the horizon, whose
+/// width and elevation give consistent distances.
+fn stop_sign(eyes: &Eyes<'_>, gain: f32) -> Option<f64> {
     for (view, min_px) in [(&eyes.tele, 12usize), (&eyes.wide, 8usize)] {
         let Some(view) = view else { continue };
         let (cx, cy) = (view.calib.cx, view.calib.cy);
-        let (w, _) = (view.width(), view.height());
+        let w = view.width();
+        // The sign's face is large (0.74 m): blocks of up to 6 pixels fit inside it.
+        let k = lamp_patch(view.sigma, 10.0);
         let mut pts: Vec<(usize, usize)> = Vec::new();
-        for v in 0..(cy - 1.0).max(0.0) as usize {
-            for u in (cx as usize + 3)..w {
-                let c = view.pixel(u, v);
-                if is_sign_red(c) && !is_red_lamp(c) && is_sign_red(view.patch2(u, v)) {
-                    pts.push((u, v));
+        // A sign face (centre 0.65 m above the camera, 0.74 m across) seen from 6 m or
+        // further lies within these rows above the horizon.
+        let rows_up = (view.calib.fy * (0.65 + 0.45) / 6.0).ceil();
+        let mut v = (cy - rows_up).max(0.0) as usize;
+        while v + k <= (cy - 1.0).max(0.0) as usize {
+            let mut u = cx as usize + 3;
+            while u + k <= w {
+                if block(view, u, v, k).is_some_and(|s| is_sign_red(s, gain)) {
+                    // Every pixel of the block counts.
+                    for dv in 0..k {
+                        for du in 0..k {
+                            pts.push((u + du, v + dv));
+                        }
+                    }
                 }
+                u += k;
             }
+            v += k;
         }
         if pts.len() < min_px {
             continue;

@@ -1,23 +1,110 @@
-//! Pixel access and the colour tests of classical perception.
+//! Pixel access, pooling and the photometric tests of classical perception.
 //!
-//! A [`View`] is one camera frame with its calibration; it answers "what colour is the ground
-//! point / the 3-D point here", averaging a 2×2 pixel patch (a little smoothing, as any camera
-//! pipeline does). The colour classes are deliberately simple: road surface (close to the
-//! asphalt reference the planner measures in front of the car), painted markings (bright and
-//! grey, or yellow), and lit lamps (red, amber, green: saturated and bright).
+//! A [`View`] is one camera frame with its calibration, a summed-area table (so the mean of
+//! any pixel rectangle costs four look-ups per channel) and the frame's measured quality: its
+//! noise level σ̂ and its white level (both from [`fogline_monitor`], from the pixels alone).
+//!
+//! Every test here is *relative* and *noise-aware*:
+//! - colours are compared with the scene's own references (the asphalt colour at that
+//!   distance, the frame's white level), never with fixed 0–255 values, so darkness and
+//!   fog shift the references with the image instead of tripping fixed thresholds;
+//! - a measurement is the mean over a patch of `n` pixels, whose noise is `σ̂/√n` per
+//!   channel; thresholds add a multiple of that, so noise costs sensitivity (far and
+//!   low-contrast things are missed first) rather than producing phantoms.
 
 use fogline_types::clip::CameraCalib;
 
-/// One camera frame.
-#[derive(Clone, Copy)]
+/// A colour, 0–255 per channel (a pooled mean, so fractional).
+pub type Rgb = [f32; 3];
+
+/// One camera frame, pooled.
 pub struct View<'a> {
     /// Calibration.
     pub calib: &'a CameraCalib,
     /// RGB8 pixels.
     pub rgb: &'a [u8],
+    /// Summed-area table, `(w + 1) × (h + 1) × 3`, row-major; empty for a view that sums
+    /// its (few) patches directly.
+    sat: Vec<u32>,
+    /// Estimated noise σ per channel, 0–255 scale.
+    pub sigma: f32,
+    /// The frame's white level (99.5th percentile of the brightest channel).
+    pub white: f32,
+    /// Undoes the clipping bias of noisy means (`None` on clean frames).
+    censor: Option<fogline_monitor::Censoring>,
+}
+
+thread_local! {
+    /// Summed-area tables are large (2.2 MB at 576 × 320): their buffers are reused per
+    /// thread instead of being allocated, zeroed and faulted in for every frame.
+    static SAT_BUFFERS: std::cell::RefCell<Vec<Vec<u32>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl Drop for View<'_> {
+    fn drop(&mut self) {
+        let buf = std::mem::take(&mut self.sat);
+        if buf.capacity() > 0 {
+            SAT_BUFFERS.with(|b| {
+                let mut b = b.borrow_mut();
+                if b.len() < 4 {
+                    b.push(buf);
+                }
+            });
+        }
+    }
 }
 
 impl<'a> View<'a> {
+    /// Pools `rgb` (validated by the caller to be `width × height × 3` bytes) and measures
+    /// its quality; `sigma` overrides the noise estimate (frames of one camera share it).
+    pub fn new(calib: &'a CameraCalib, rgb: &'a [u8], sigma: Option<f32>) -> Self {
+        let mut v = Self::plain(calib, rgb, sigma);
+        let (w, h) = (v.width(), v.height());
+        let stride = (w + 1) * 3;
+        let mut sat = SAT_BUFFERS
+            .with(|b| b.borrow_mut().pop())
+            .unwrap_or_default();
+        sat.clear();
+        sat.resize(stride * (h + 1), 0);
+        for y in 0..h {
+            let row = &rgb[y * w * 3..(y + 1) * w * 3];
+            let (prev, cur) = sat[y * stride..(y + 2) * stride].split_at_mut(stride);
+            // The row's running sums, then the table's row above added (vectorised).
+            let (mut r, mut g, mut b) = (0u32, 0u32, 0u32);
+            for (dst, px) in cur[3..].chunks_exact_mut(3).zip(row.chunks_exact(3)) {
+                r += u32::from(px[0]);
+                g += u32::from(px[1]);
+                b += u32::from(px[2]);
+                dst[0] = r;
+                dst[1] = g;
+                dst[2] = b;
+            }
+            for (d, p) in cur.iter_mut().zip(prev.iter()) {
+                *d += *p;
+            }
+        }
+        v.sat = sat;
+        v
+    }
+
+    /// A view without a summed-area table, for frames read at a few points only: patch
+    /// means are summed directly.
+    pub fn plain(calib: &'a CameraCalib, rgb: &'a [u8], sigma: Option<f32>) -> Self {
+        let (w, h) = (calib.width as usize, calib.height as usize);
+        let sigma = sigma.unwrap_or_else(|| {
+            fogline_monitor::estimate_noise(rgb, w, h).map_or(0.0, |e| e.sigma as f32)
+        });
+        let white = fogline_monitor::exposure(rgb, w, h).map_or(255.0, |e| e.white as f32);
+        Self {
+            calib,
+            rgb,
+            sat: Vec::new(),
+            sigma,
+            white,
+            censor: fogline_monitor::Censoring::new(f64::from(sigma)),
+        }
+    }
+
     /// Width in pixels.
     pub fn width(&self) -> usize {
         self.calib.width as usize
@@ -28,76 +115,71 @@ impl<'a> View<'a> {
         self.calib.height as usize
     }
 
-    /// The colour at pixel position `(u, v)` (2×2 average), or `None` outside the image.
+    /// The mean colour of the pixels `[x0, x1) × [y0, y1)` (clamped to the image) and their
+    /// count, or `None` when the rectangle misses the image.
     #[inline]
-    pub fn at(&self, u: f64, v: f64) -> Option<[f32; 3]> {
-        let (w, h) = (self.width(), self.height());
-        let x = (u - 0.5).floor();
-        let y = (v - 0.5).floor();
-        if x < 0.0 || y < 0.0 || x + 1.0 >= w as f64 || y + 1.0 >= h as f64 {
+    pub fn rect(&self, x0: isize, y0: isize, x1: isize, y1: isize) -> Option<(Rgb, usize)> {
+        let (w, h) = (self.width() as isize, self.height() as isize);
+        let (x0, y0) = (x0.clamp(0, w) as usize, y0.clamp(0, h) as usize);
+        let (x1, y1) = (x1.clamp(0, w) as usize, y1.clamp(0, h) as usize);
+        if x1 <= x0 || y1 <= y0 {
             return None;
         }
-        let (x, y) = (x as usize, y as usize);
-        let mut acc = [0f32; 3];
-        for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-            let i = ((y + dy) * w + x + dx) * 3;
+        let n = (x1 - x0) * (y1 - y0);
+        let mut out = [0f32; 3];
+        if self.sat.is_empty() {
+            let mut acc = [0u32; 3];
+            for y in y0..y1 {
+                let row = &self.rgb[(y * self.width() + x0) * 3..(y * self.width() + x1) * 3];
+                for px in row.chunks_exact(3) {
+                    acc[0] += u32::from(px[0]);
+                    acc[1] += u32::from(px[1]);
+                    acc[2] += u32::from(px[2]);
+                }
+            }
             for c in 0..3 {
-                acc[c] += f32::from(self.rgb[i + c]);
+                out[c] = acc[c] as f32 / n as f32;
             }
+            return Some((self.uncensor(out), n));
         }
-        Some([acc[0] / 4.0, acc[1] / 4.0, acc[2] / 4.0])
+        let stride = (self.width() + 1) * 3;
+        for c in 0..3 {
+            let s = self.sat[y1 * stride + x1 * 3 + c] + self.sat[y0 * stride + x0 * 3 + c]
+                - self.sat[y0 * stride + x1 * 3 + c]
+                - self.sat[y1 * stride + x0 * 3 + c];
+            out[c] = s as f32 / n as f32;
+        }
+        Some((self.uncensor(out), n))
     }
 
-    /// The mean colour of the `k × k` pixels around `(u, v)` (a larger patch for large
-    /// structures: the road surface and objects on it), or `None` outside the image.
+    /// A patch mean with the clipping bias removed (see [`fogline_monitor::Censoring`]).
     #[inline]
-    pub fn at_k(&self, u: f64, v: f64, k: usize) -> Option<[f32; 3]> {
-        let (w, h) = (self.width(), self.height());
-        let half = k as f64 / 2.0;
-        let x = (u - half).round();
-        let y = (v - half).round();
-        if x < 0.0 || y < 0.0 || x + k as f64 > w as f64 || y + k as f64 > h as f64 {
+    fn uncensor(&self, c: Rgb) -> Rgb {
+        match &self.censor {
+            Some(k) => [k.true_mean(c[0]), k.true_mean(c[1]), k.true_mean(c[2])],
+            None => c,
+        }
+    }
+
+    /// The mean over a `kw × kh` patch centred on pixel position `(u, v)` (clamped to the
+    /// image), or `None` when `(u, v)` is outside it.
+    #[inline]
+    pub fn patch(&self, u: f64, v: f64, kw: usize, kh: usize) -> Option<Sample> {
+        if !(u >= 0.0 && v >= 0.0 && u < self.width() as f64 && v < self.height() as f64) {
             return None;
         }
-        let (x, y) = (x as usize, y as usize);
-        let mut acc = [0f32; 3];
-        for dy in 0..k {
-            let row = ((y + dy) * w + x) * 3;
-            for px in self.rgb[row..row + 3 * k].chunks_exact(3) {
-                acc[0] += f32::from(px[0]);
-                acc[1] += f32::from(px[1]);
-                acc[2] += f32::from(px[2]);
-            }
-        }
-        let n = (k * k) as f32;
-        Some([acc[0] / n, acc[1] / n, acc[2] / n])
-    }
-
-    /// [`View::at_k`] at a rig-frame point.
-    #[inline]
-    pub fn at_point_k(&self, p: [f64; 3], k: usize) -> Option<[f32; 3]> {
-        let (u, v, _) = self.calib.project(p)?;
-        self.at_k(u, v, k)
-    }
-
-    /// The mean of the 2×2 pixels whose top-left is `(x, y)` (clamped at the image edge).
-    #[inline]
-    pub fn patch2(&self, x: usize, y: usize) -> [f32; 3] {
-        let (w, h) = (self.width(), self.height());
-        let (x, y) = (x.min(w.saturating_sub(2)), y.min(h.saturating_sub(2)));
-        let mut acc = [0f32; 3];
-        for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-            let c = self.pixel(x + dx, y + dy);
-            acc[0] += c[0];
-            acc[1] += c[1];
-            acc[2] += c[2];
-        }
-        [acc[0] / 4.0, acc[1] / 4.0, acc[2] / 4.0]
+        let x0 = (u - kw as f64 / 2.0).round() as isize;
+        let y0 = (v - kh as f64 / 2.0).round() as isize;
+        self.rect(x0, y0, x0 + kw.max(1) as isize, y0 + kh.max(1) as isize)
+            .map(|(c, n)| Sample {
+                c,
+                s: self.sigma / (n as f32).sqrt(),
+            })
     }
 
     /// The single pixel at integer position, no averaging.
     #[inline]
-    pub fn pixel(&self, x: usize, y: usize) -> [f32; 3] {
+    pub fn pixel(&self, x: usize, y: usize) -> Rgb {
         let i = (y * self.width() + x) * 3;
         [
             f32::from(self.rgb[i]),
@@ -106,14 +188,7 @@ impl<'a> View<'a> {
         ]
     }
 
-    /// The colour seen at rig-frame point `p`, or `None` when it is not in view.
-    #[inline]
-    pub fn at_point(&self, p: [f64; 3]) -> Option<[f32; 3]> {
-        let (u, v, _) = self.calib.project(p)?;
-        self.at(u, v)
-    }
-
-    /// Pixel position of rig-frame point `p`.
+    /// Pixel position of rig-frame point `p` when it is in the image.
     pub fn project(&self, p: [f64; 3]) -> Option<(f64, f64)> {
         self.calib
             .project(p)
@@ -122,60 +197,192 @@ impl<'a> View<'a> {
                 u >= 0.0 && v >= 0.0 && u < self.width() as f64 && v < self.height() as f64
             })
     }
+
+    /// The mean over a patch around ground-level or 3-D point `p`, sized to cover about
+    /// `lat_m` across and `dep_m` along the line of sight (a flat patch on the ground: its
+    /// depth extent maps to image rows), at least 2 × 2 pixels and as many more as the
+    /// noise asks for within those limits.
+    #[inline]
+    pub fn around(&self, p: [f64; 3], lat_m: f64, dep_m: f64) -> Option<Sample> {
+        let proj = self.calib.project(p)?;
+        self.around_at(p, proj, lat_m, dep_m)
+    }
+
+    /// [`View::around`] with `p`'s projection `(u, v, range)` already known.
+    #[inline]
+    pub fn around_at(
+        &self,
+        p: [f64; 3],
+        (u, v, range): (f64, f64, f64),
+        lat_m: f64,
+        dep_m: f64,
+    ) -> Option<Sample> {
+        let x = (p[0] - self.calib.x_m).max(0.5);
+        let px_per_m = self.calib.fx / range.max(0.5);
+        let kw_max = (lat_m * px_per_m).max(2.0);
+        // A ground patch's depth extent covers fy·h·Δx/x² rows; a vertical face's covers fy·Δz/x.
+        let rows_per_m = if p[2] < 0.05 {
+            self.calib.fy * self.calib.z_m / (x * x)
+        } else {
+            self.calib.fy / x
+        };
+        let kh_max = (dep_m * rows_per_m).max(2.0);
+        let (kw, kh) = pool_size(self.sigma, kw_max, kh_max);
+        self.patch(u, v, kw, kh)
+    }
+}
+
+/// A patch mean and the standard deviation of its noise per channel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Mean colour.
+    pub c: Rgb,
+    /// Noise of the mean per channel: `σ̂ / √n`.
+    pub s: f32,
+}
+
+/// The residual noise a pooled measurement aims for, per channel (0–255 scale).
+pub const TARGET_NOISE: f32 = 3.0;
+
+/// Pixels to pool for noise `sigma` within `kw_max × kh_max`: enough for [`TARGET_NOISE`]
+/// when the limits allow — about twice as wide as tall, then taller where the width is
+/// limited.
+#[inline]
+pub fn pool_size(sigma: f32, kw_max: f64, kh_max: f64) -> (usize, usize) {
+    let need = f64::from((sigma / TARGET_NOISE).powi(2)).max(4.0);
+    let kh = (need / 2.0).sqrt().clamp(2.0, kh_max.max(2.0));
+    let kw = (need / kh).clamp(2.0, kw_max.max(2.0));
+    // Narrow limits across: make up for it along.
+    let kh = (need / kw).clamp(kh, kh_max.max(2.0));
+    (kw.round() as usize, kh.round() as usize)
 }
 
 /// Luminance (mean of the channels).
 #[inline]
-pub fn lum(c: [f32; 3]) -> f32 {
+pub fn lum(c: Rgb) -> f32 {
     (c[0] + c[1] + c[2]) / 3.0
 }
 
 /// Spread between the largest and smallest channel.
 #[inline]
-pub fn chroma(c: [f32; 3]) -> f32 {
+pub fn chroma(c: Rgb) -> f32 {
     c[0].max(c[1]).max(c[2]) - c[0].min(c[1]).min(c[2])
 }
 
-/// A painted white marking: brighter than the road by a margin, and grey.
+/// Noise of the luminance of a mean whose channels have noise `s` each.
 #[inline]
-pub fn is_white_paint(c: [f32; 3], road: f32) -> bool {
-    lum(c) > road + 55.0 && chroma(c) < 45.0
+fn lum_noise(s: f32) -> f32 {
+    s / 3f32.sqrt()
 }
 
-/// Yellow paint.
-#[inline]
-pub fn is_yellow_paint(c: [f32; 3], road: f32) -> bool {
-    c[0] > road + 40.0 && c[1] > road + 20.0 && c[0] - c[2] > 70.0 && c[1] - c[2] > 50.0
+/// The scene's photometric references at one distance: the asphalt's colour there and the
+/// contrast scale of the frame (1 in daylight; lower when the frame is darker).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Refs {
+    /// Asphalt colour expected at this distance.
+    pub road: Rgb,
+    /// Exposure scale: the white level over a daylight white level, in [0.2, 1.1].
+    pub gain: f32,
 }
 
-/// Road surface: close to the asphalt reference and grey, or paint on it.
+/// Daylight white level the base thresholds are stated for.
+pub const DAY_WHITE: f32 = 235.0;
+
+/// Exposure scale of a frame with white level `white`.
 #[inline]
-pub fn is_road(c: [f32; 3], road: f32) -> bool {
-    ((lum(c) - road).abs() < 28.0 && chroma(c) < 30.0)
-        || is_white_paint(c, road)
-        || is_yellow_paint(c, road)
+pub fn gain_of(white: f32) -> f32 {
+    (white / DAY_WHITE).clamp(0.2, 1.1)
 }
 
-/// A lit red lamp (brake light, red signal).
+/// Painted white marking: brighter than the asphalt by a clear margin, and grey.
 #[inline]
-pub fn is_red_lamp(c: [f32; 3]) -> bool {
-    c[0] > 200.0 && c[1] < 110.0 && c[2] < 100.0
+pub fn is_white_paint(x: Sample, r: &Refs) -> bool {
+    let d = lum(x.c) - lum(r.road);
+    d > 45.0 * r.gain + 3.0 * lum_noise(x.s) && chroma(x.c) < 45.0 * r.gain.max(0.5) + 3.5 * x.s
 }
 
-/// A lit green signal.
+/// Yellow paint: red and green above the asphalt, blue well below them.
 #[inline]
-pub fn is_green_lamp(c: [f32; 3]) -> bool {
-    c[1] > 190.0 && c[0] < 130.0 && c[1] - c[0] > 90.0
+pub fn is_yellow_paint(x: Sample, r: &Refs) -> bool {
+    let c = x.c;
+    let g = r.gain;
+    let m = 3.0 * x.s;
+    c[0] > r.road[0] + 35.0 * g + m
+        && c[1] > r.road[1] + 18.0 * g + m
+        && c[0] - c[2] > 65.0 * g + m
+        && c[1] - c[2] > 45.0 * g + m
 }
 
-/// A lit amber signal.
+/// How far a colour is from the asphalt, in units of its threshold (> 1: not asphalt):
+/// the larger of the luminance and the chromatic differences, each over its threshold.
 #[inline]
-pub fn is_amber_lamp(c: [f32; 3]) -> bool {
-    c[0] > 200.0 && (120.0..215.0).contains(&c[1]) && c[2] < 90.0
+pub fn road_distance(x: Sample, r: &Refs) -> f32 {
+    let d = [x.c[0] - r.road[0], x.c[1] - r.road[1], x.c[2] - r.road[2]];
+    let dl = lum(d).abs() / (26.0 * r.gain + 3.5 * lum_noise(x.s));
+    let dc = chroma(d) / (28.0 * r.gain.max(0.4) + 4.5 * x.s);
+    // Brightness and hue together: a change of both, each below its own threshold, is
+    // still not asphalt.
+    let de = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() / (42.0 * r.gain + 3.5 * x.s);
+    dl.max(dc).max(de)
 }
 
-/// Sign red: saturated red, not necessarily bright.
+/// Road surface: close to the asphalt, or paint on it.
 #[inline]
-pub fn is_sign_red(c: [f32; 3]) -> bool {
-    c[0] > 60.0 && c[0] > 2.2 * c[1] && c[0] > 2.2 * c[2]
+pub fn is_road(x: Sample, r: &Refs) -> bool {
+    road_distance(x, r) <= 1.0 || is_white_paint(x, r) || is_yellow_paint(x, r)
+}
+
+/// Clearly not the asphalt (a tighter test than [`is_road`], for points above the ground,
+/// where there is no paint).
+#[inline]
+pub fn is_object(x: Sample, r: &Refs) -> bool {
+    let d = [x.c[0] - r.road[0], x.c[1] - r.road[1], x.c[2] - r.road[2]];
+    lum(d).abs() > 14.0 * r.gain + 3.5 * lum_noise(x.s)
+        || chroma(d) > 22.0 * r.gain.max(0.4) + 4.5 * x.s
+        || (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() > 26.0 * r.gain + 3.5 * x.s
+}
+
+/// Lamp colours a lit lamp can show.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LampColour {
+    /// Red (signal, brake lamp).
+    Red,
+    /// Amber.
+    Amber,
+    /// Green.
+    Green,
+}
+
+/// A lit lamp: an emitter as bright as the frame's white level in its dominant channel,
+/// with the hue of a signal. `white` is the frame's white level. Means are taken with the
+/// clipping bias removed, so a saturated lamp reads at full level under any noise.
+#[inline]
+pub fn lamp_colour(x: Sample, white: f32) -> Option<LampColour> {
+    let [r, g, b] = x.c;
+    let m = 2.0 * x.s;
+    let top = r.max(g);
+    // Emitters reach the white level; diffuse paint of the same hue stays well below it.
+    if top + m < 0.9 * white {
+        return None;
+    }
+    let bright = |v: f32, k: f32| v + m > k * white;
+    if bright(r, 0.9) && g + m < 0.5 * r && b + m < 0.45 * r {
+        return Some(LampColour::Red);
+    }
+    if bright(r, 0.9) && g > 0.5 * r + m && g + m < 0.86 * r && b + m < 0.3 * r {
+        return Some(LampColour::Amber);
+    }
+    if bright(g, 0.88) && r + m < 0.55 * g && b + m < 0.75 * g {
+        return Some(LampColour::Green);
+    }
+    None
+}
+
+/// Sign red: saturated red (red well above 1.8 times green and blue), not necessarily
+/// bright. The margin is 2.5 standard errors of `r − 1.8·max(g, b)`.
+#[inline]
+pub fn is_sign_red(x: Sample, gain: f32) -> bool {
+    let [r, g, b] = x.c;
+    let m = 2.5 * x.s * (1.0f32 + 1.8 * 1.8).sqrt();
+    r > 45.0 * gain + 2.5 * x.s && r - 1.8 * g.max(b) > m && r > 2.0 * g.max(b)
 }

@@ -1,0 +1,434 @@
+//! Blind estimates of how degraded a camera frame is, from its pixels alone.
+//!
+//! Nothing here knows the scene or the condition that was applied: a perception stack uses
+//! these figures to size its pooling and to lower its confidence, and the runtime ODD
+//! monitor compares them with the envelope's thresholds.
+//!
+//! - [`estimate_noise`]: the standard deviation of additive noise on the 0–255 scale
+//!   (Immerkær's Laplacian-difference residual, taken robustly through its median).
+//! - [`exposure`]: the frame's white level and mean luminance, the photometric scale that
+//!   colour tests are made relative to.
+//! - [`Censoring`]: the true level behind a mean of noisy pixels clipped at 0 and 255.
+//!
+//! ```
+//! // A flat grey frame has no noise and a white level of its grey.
+//! let rgb = vec![120u8; 64 * 48 * 3];
+//! let n = fogline_monitor::estimate_noise(&rgb, 64, 48).unwrap();
+//! assert_eq!(n.sigma, 0.0);
+//! let e = fogline_monitor::exposure(&rgb, 64, 48).unwrap();
+//! assert_eq!(e.white, 120.0);
+//! ```
+
+/// Why a frame could not be measured.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MonitorError {
+    /// The buffer does not hold `width × height` RGB8 pixels.
+    #[error("frame of {width}x{height} needs {expected} bytes (RGB8), got {got}")]
+    Size {
+        /// Width, px.
+        width: usize,
+        /// Height, px.
+        height: usize,
+        /// `width × height × 3`.
+        expected: usize,
+        /// The buffer's length.
+        got: usize,
+    },
+    /// Smaller than 3×3 pixels: no residual can be formed.
+    #[error("frame of {width}x{height} is too small (at least 3x3 pixels)")]
+    TooSmall {
+        /// Width, px.
+        width: usize,
+        /// Height, px.
+        height: usize,
+    },
+}
+
+fn check(rgb: &[u8], width: usize, height: usize) -> Result<(), MonitorError> {
+    let expected = width * height * 3;
+    if rgb.len() != expected {
+        return Err(MonitorError::Size {
+            width,
+            height,
+            expected,
+            got: rgb.len(),
+        });
+    }
+    if width < 3 || height < 3 {
+        return Err(MonitorError::TooSmall { width, height });
+    }
+    Ok(())
+}
+
+/// A blind estimate of additive, pixel-independent noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseEstimate {
+    /// Standard deviation of the noise per channel, 0–255 scale.
+    pub sigma: f64,
+    /// Residuals the estimate is the median of.
+    pub samples: usize,
+    /// Share of the sampled neighbourhoods left out because a value in them sat at 0 or 255
+    /// (there the noise is censored and would read low).
+    pub clipped_share: f64,
+}
+
+/// The Laplacian-difference mask `[[1,−2,1],[−2,4,−2],[1,−2,1]]` has a squared norm of 36.
+const MASK_NORM: f64 = 6.0;
+/// The median of |z| for a standard normal z.
+const MEDIAN_ABS_NORMAL: f64 = 0.674_489_750_196_081_7;
+/// About this many pixels are sampled per frame (a regular grid).
+const TARGET_SAMPLES: usize = 4_000;
+
+/// Estimates the standard deviation of additive Gaussian-like noise in an RGB8 frame.
+///
+/// Every sampled pixel's 3×3 neighbourhood is convolved, per channel, with Immerkær's
+/// Laplacian-difference mask, which cancels any locally planar signal; for independent noise
+/// of standard deviation σ the residual has standard deviation 6σ. The estimate is the
+/// median absolute residual over 6 · 0.6745 — the median, not the mean, so that the edges
+/// of a scene (a minority of neighbourhoods) do not inflate it. Neighbourhoods holding a
+/// 0 or a 255 are left out: clipping censors the noise there. Where most of a frame clips
+/// (strong noise on a dark or bright scene) the remaining neighbourhoods are the ones the
+/// noise happened to keep in range, so the estimate reads somewhat low at very high σ.
+///
+/// Pixels are sampled on a regular grid of about 4,000 points; the result depends on the
+/// pixels only.
+pub fn estimate_noise(
+    rgb: &[u8],
+    width: usize,
+    height: usize,
+) -> Result<NoiseEstimate, MonitorError> {
+    check(rgb, width, height)?;
+    let inner = (width - 2) * (height - 2);
+    let step = ((inner as f64 / TARGET_SAMPLES as f64).sqrt().floor() as usize).max(1);
+    // |residual| ≤ 16 · 255; a histogram gives the exact median without sorting.
+    let mut hist = vec![0u32; 16 * 255 + 1];
+    let (mut n, mut clipped, mut seen) = (0usize, 0usize, 0usize);
+    let stride = width * 3;
+    let mut y = 1;
+    while y + 1 < height {
+        let mut x = 1 + (y / step) % step; // staggered rows: no aliasing with vertical stripes
+        while x + 1 < width {
+            seen += 1;
+            let c = y * stride + x * 3;
+            // The 3 × 3 neighbourhood's rows, 9 bytes each (three RGB pixels).
+            let (a, m, d) = (
+                &rgb[c - stride - 3..c - stride + 6],
+                &rgb[c - 3..c + 6],
+                &rgb[c + stride - 3..c + stride + 6],
+            );
+            if a.iter().chain(m).chain(d).any(|&q| q == 0 || q == 255) {
+                clipped += 1;
+            } else {
+                for ch in 0..3 {
+                    let v = |row: &[u8], k: usize| i32::from(row[k * 3 + ch]);
+                    let r = v(a, 0) - 2 * v(a, 1) + v(a, 2) - 2 * v(m, 0) + 4 * v(m, 1)
+                        - 2 * v(m, 2)
+                        + v(d, 0)
+                        - 2 * v(d, 1)
+                        + v(d, 2);
+                    hist[r.unsigned_abs() as usize] += 1;
+                    n += 1;
+                }
+            }
+            x += step;
+        }
+        y += step;
+    }
+    let clipped_share = if seen > 0 {
+        clipped as f64 / seen as f64
+    } else {
+        0.0
+    };
+    if n == 0 {
+        return Ok(NoiseEstimate {
+            sigma: 0.0,
+            samples: 0,
+            clipped_share,
+        });
+    }
+    let sigma = median_of_histogram(&hist, n) / (MASK_NORM * MEDIAN_ABS_NORMAL);
+    Ok(NoiseEstimate {
+        sigma,
+        samples: n,
+        clipped_share,
+    })
+}
+
+/// The median of the values a histogram counts (the mean of the two middle ones for an even
+/// count).
+fn median_of_histogram(hist: &[u32], n: usize) -> f64 {
+    let value_at = |rank: usize| -> f64 {
+        let mut acc = 0usize;
+        for (v, &c) in hist.iter().enumerate() {
+            acc += c as usize;
+            if acc > rank {
+                return v as f64;
+            }
+        }
+        (hist.len() - 1) as f64
+    };
+    if n % 2 == 1 {
+        value_at(n / 2)
+    } else {
+        0.5 * (value_at(n / 2 - 1) + value_at(n / 2))
+    }
+}
+
+/// The photometric scale of a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exposure {
+    /// The white level: the 99.5th percentile of the brightest channel of each pixel
+    /// (sky, white paint, lit lamps), 0–255. Colour tests divide by it.
+    pub white: f64,
+    /// Mean luminance (mean of the channels) over the frame, 0–255.
+    pub mean_luma: f64,
+}
+
+/// Measures a frame's white level and mean luminance on a grid of about 4,000 pixels.
+pub fn exposure(rgb: &[u8], width: usize, height: usize) -> Result<Exposure, MonitorError> {
+    check(rgb, width, height)?;
+    let step = (((width * height) as f64 / TARGET_SAMPLES as f64)
+        .sqrt()
+        .floor() as usize)
+        .max(1);
+    let mut hist = [0u32; 256];
+    let (mut n, mut sum) = (0usize, 0u64);
+    for y in (0..height).step_by(step) {
+        for x in (0..width).step_by(step) {
+            let i = (y * width + x) * 3;
+            let (r, g, b) = (rgb[i], rgb[i + 1], rgb[i + 2]);
+            hist[usize::from(r.max(g).max(b))] += 1;
+            sum += u64::from(r) + u64::from(g) + u64::from(b);
+            n += 1;
+        }
+    }
+    let rank = (n as f64 * 0.995).floor() as usize;
+    let mut acc = 0usize;
+    let mut white = 255.0;
+    for (v, &c) in hist.iter().enumerate() {
+        acc += c as usize;
+        if acc > rank.min(n - 1) {
+            white = v as f64;
+            break;
+        }
+    }
+    Ok(Exposure {
+        white,
+        mean_luma: sum as f64 / (3 * n) as f64,
+    })
+}
+
+/// The standard normal distribution function Φ (Abramowitz & Stegun 7.1.26 for erf,
+/// absolute error below 1.5 × 10⁻⁷).
+pub fn normal_cdf(z: f64) -> f64 {
+    let x = z.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.327_591_1 * x);
+    let poly = t
+        * (0.254_829_592
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let erf = 1.0 - poly * (-x * x).exp();
+    if z >= 0.0 {
+        0.5 * (1.0 + erf)
+    } else {
+        0.5 * (1.0 - erf)
+    }
+}
+
+/// The standard normal density φ.
+fn normal_pdf(z: f64) -> f64 {
+    (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt()
+}
+
+/// Undoes the bias that clipping at 0 and 255 puts into the mean of noisy pixels.
+///
+/// A sample is `clip(J + K)` with `K ~ N(0, σ²)`: near the ends of the range the clipped
+/// noise no longer averages to zero (a lamp at 255 under σ = 70 averages about 227; a
+/// dark paint at 30 averages about 45). For a patch of constant true value `μ` the mean
+/// of its clipped samples tends to `g(μ) = E[clip(μ + K, 0, 255)]`, which is increasing in
+/// `μ`; [`Censoring::true_mean`] inverts it, so photometric tests compare true levels.
+#[derive(Debug, Clone)]
+pub struct Censoring {
+    /// `true_mean` at observed means 0, 1, …, 255.
+    table: Vec<f32>,
+}
+
+impl Censoring {
+    /// The inverse for noise `sigma`, or `None` when the noise is too weak to matter
+    /// (σ < 3: the bias is below 0.1 level above 9 and below 246).
+    pub fn new(sigma: f64) -> Option<Self> {
+        if sigma.is_nan() || sigma < 3.0 {
+            return None;
+        }
+        let g = |mu: f64| -> f64 {
+            let hi = (mu - 255.0) / sigma;
+            let lo = mu / sigma;
+            let over = (mu - 255.0) * normal_cdf(hi) + sigma * normal_pdf(hi);
+            let under = -mu * normal_cdf(-lo) + sigma * normal_pdf(lo);
+            mu - over + under
+        };
+        // g on a fine grid of true levels, then inverted at each observed level by linear
+        // interpolation between the grid points that bracket it (g is increasing).
+        let (lo_mu, hi_mu) = (-3.0 * sigma, 255.0 + 3.0 * sigma);
+        const GRID: usize = 1024;
+        let mus: Vec<f64> = (0..=GRID)
+            .map(|i| lo_mu + (hi_mu - lo_mu) * i as f64 / GRID as f64)
+            .collect();
+        let gs: Vec<f64> = mus.iter().map(|&m| g(m)).collect();
+        let mut j = 0;
+        let table = (0..=255)
+            .map(|m| {
+                let target = f64::from(m);
+                while j + 1 < GRID && gs[j + 1] < target {
+                    j += 1;
+                }
+                let (g0, g1) = (gs[j], gs[j + 1]);
+                let f = if g1 > g0 {
+                    ((target - g0) / (g1 - g0)).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (mus[j] + f * (mus[j + 1] - mus[j])) as f32
+            })
+            .collect();
+        Some(Self { table })
+    }
+
+    /// The true level whose clipped noisy samples average `observed` (0–255).
+    #[inline]
+    pub fn true_mean(&self, observed: f32) -> f32 {
+        let x = observed.clamp(0.0, 255.0);
+        let i = (x.floor() as usize).min(254);
+        let f = x - i as f32;
+        self.table[i] + f * (self.table[i + 1] - self.table[i])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic normal stream (Box–Muller on a 64-bit LCG), for the tests only.
+    struct Normal(u64);
+    impl Normal {
+        fn unit(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+        fn next(&mut self) -> f64 {
+            let (a, b) = (self.unit(), self.unit());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        }
+    }
+
+    /// A scene with structure: vertical bands and a diagonal edge, values 60–200.
+    fn scene(w: usize, h: usize) -> Vec<u8> {
+        let mut v = vec![0u8; w * h * 3];
+        for y in 0..h {
+            for x in 0..w {
+                let base: u8 = if x * 3 < w {
+                    70
+                } else if x + y < w {
+                    180
+                } else {
+                    120
+                };
+                for c in 0..3 {
+                    v[(y * w + x) * 3 + c] = base + (c as u8) * 5;
+                }
+            }
+        }
+        v
+    }
+
+    fn noisy(clean: &[u8], sigma: f64, seed: u64) -> Vec<u8> {
+        let mut g = Normal(seed);
+        clean
+            .iter()
+            .map(|&p| (f64::from(p) + sigma * g.next()).round().clamp(0.0, 255.0) as u8)
+            .collect()
+    }
+
+    #[test]
+    fn a_clean_scene_reads_zero_and_noise_reads_its_sigma() {
+        let (w, h) = (320, 200);
+        let clean = scene(w, h);
+        assert_eq!(estimate_noise(&clean, w, h).unwrap().sigma, 0.0);
+        for (sigma, tol) in [(3.0, 0.5), (10.0, 0.8), (30.0, 2.5), (50.0, 6.0)] {
+            let est = estimate_noise(&noisy(&clean, sigma, 7), w, h).unwrap();
+            assert!(
+                (est.sigma - sigma).abs() < tol,
+                "sigma {sigma}: estimated {}",
+                est.sigma
+            );
+        }
+    }
+
+    #[test]
+    fn the_estimate_grows_with_the_noise() {
+        let (w, h) = (200, 120);
+        let clean = scene(w, h);
+        let s: Vec<f64> = [0.0, 10.0, 30.0, 50.0, 70.0]
+            .iter()
+            .map(|&sigma| {
+                estimate_noise(&noisy(&clean, sigma, 3), w, h)
+                    .unwrap()
+                    .sigma
+            })
+            .collect();
+        assert!(s.windows(2).all(|p| p[1] > p[0]), "{s:?}");
+    }
+
+    #[test]
+    fn censoring_recovers_the_true_level_of_clipped_means() {
+        assert!(Censoring::new(1.0).is_none());
+        assert!((normal_cdf(1.96) - 0.975_002_1).abs() < 1e-6);
+        for sigma in [30.0, 70.0] {
+            let c = Censoring::new(sigma).unwrap();
+            for level in [10u8, 40, 128, 230, 255] {
+                let flat = vec![level; 300 * 300];
+                let obs: f64 = noisy(&flat, sigma, 5)
+                    .iter()
+                    .map(|&p| f64::from(p))
+                    .sum::<f64>()
+                    / flat.len() as f64;
+                let back = f64::from(c.true_mean(obs as f32));
+                assert!(
+                    (back - f64::from(level)).abs() < 2.5,
+                    "σ {sigma}, level {level}: observed {obs:.1}, recovered {back:.1}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn bad_sizes_are_errors() {
+        assert!(matches!(
+            estimate_noise(&[0u8; 10], 2, 2),
+            Err(MonitorError::Size { expected: 12, .. })
+        ));
+        assert!(matches!(
+            estimate_noise(&[0u8; 12], 2, 2),
+            Err(MonitorError::TooSmall { .. })
+        ));
+        assert!(exposure(&[0u8; 5], 3, 3).is_err());
+    }
+
+    #[test]
+    fn exposure_scales_with_gain() {
+        let (w, h) = (100, 80);
+        let a = scene(w, h);
+        let dark: Vec<u8> = a
+            .iter()
+            .map(|&p| (f64::from(p) * 0.4).round() as u8)
+            .collect();
+        let (ea, ed) = (exposure(&a, w, h).unwrap(), exposure(&dark, w, h).unwrap());
+        assert_eq!(ea.white, 190.0);
+        assert_eq!(ed.white, 76.0);
+        assert!((ed.mean_luma / ea.mean_luma - 0.4).abs() < 0.01);
+    }
+}
