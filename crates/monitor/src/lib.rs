@@ -13,10 +13,11 @@
 //! ```
 //! // A flat grey frame has no noise and a white level of its grey.
 //! let rgb = vec![120u8; 64 * 48 * 3];
-//! let n = fogline_monitor::estimate_noise(&rgb, 64, 48).unwrap();
+//! let n = fogline_monitor::estimate_noise(&rgb, 64, 48)?;
 //! assert_eq!(n.sigma, 0.0);
-//! let e = fogline_monitor::exposure(&rgb, 64, 48).unwrap();
+//! let e = fogline_monitor::exposure(&rgb, 64, 48)?;
 //! assert_eq!(e.white, 120.0);
+//! # Ok::<(), fogline_monitor::MonitorError>(())
 //! ```
 
 /// Why a frame could not be measured.

@@ -139,11 +139,14 @@ const TELE_FROM_M: f64 = 13.0;
 struct Eyes<'a> {
     wide: Option<View<'a>>,
     tele: Option<View<'a>>,
-    /// Earlier frames of each camera with the rig's pose then (in the rig frame at `t0`),
-    /// for pooling static ground features over time; empty on clean frames.
-    past_wide: Vec<(View<'a>, [f64; 3])>,
-    past_tele: Vec<(View<'a>, [f64; 3])>,
+    /// Earlier frames of each camera (frames back, view, the rig's pose then in the rig
+    /// frame at `t0`), for pooling static ground features over time; empty on clean frames.
+    past_wide: Vec<Past<'a>>,
+    past_tele: Vec<Past<'a>>,
 }
+
+/// An earlier frame: how many frames back, its view, and the rig's pose `[x, y, yaw]` then.
+type Past<'a> = (usize, View<'a>, [f64; 3]);
 
 /// The rig-frame point `p` (at `t0`) as seen from a rig at pose `[x, y, yaw]`.
 #[inline]
@@ -163,19 +166,14 @@ impl<'a> Eyes<'a> {
     /// [`Eyes::view_for`] with `p`'s projection `(u, v, range)` in that view.
     #[inline]
     fn view_proj(&self, p: [f64; 3]) -> Option<(&View<'a>, (f64, f64, f64))> {
-        let inside = |v: &View<'_>| {
-            v.calib.project(p).filter(|&(u, r, _)| {
-                u >= 0.0 && r >= 0.0 && u < v.width() as f64 && r < v.height() as f64
-            })
-        };
         if p[0] >= TELE_FROM_M
             && let Some(t) = &self.tele
-            && let Some(q) = inside(t)
+            && let Some(q) = t.project(p)
         {
             return Some((t, q));
         }
         let w = self.wide.as_ref()?;
-        inside(w).map(|q| (w, q))
+        w.project(p).map(|q| (w, q))
     }
 
     /// Like [`Eyes::ground`], averaged with the same ground point in the earlier frames
@@ -196,7 +194,7 @@ impl<'a> Eyes<'a> {
             return Some(first);
         }
         let (mut acc, mut n) = (first.c, 1.0f32);
-        for (v, pose) in past {
+        for (_, v, pose) in past {
             if let Some(q) = v.around(into_pose(p, *pose), lat, dep) {
                 for c in 0..3 {
                     acc[c] += q.c[c];
@@ -234,16 +232,12 @@ impl<'a> Eyes<'a> {
         let cols = (need / 4.0).clamp(4.0, (lat * view.calib.fx / range).max(4.0));
         let rows = (need / cols).clamp(4.0, (v0 - v_far + 2.0).max(4.0));
         let half = cols / 2.0;
-        let (c, n) = view.rect(
+        view.rect_sample(
             (u - half).round() as isize,
             (v0 + 2.0 - rows).round() as isize,
             (u + half).round() as isize,
             (v0 + 2.0).round() as isize,
-        )?;
-        Some(Sample {
-            c,
-            s: view.sigma / (n as f32).sqrt(),
-        })
+        )
     }
 
     /// A pooled reading around rig-frame point `p`.
@@ -318,14 +312,13 @@ fn history_motion(h: &[EgoPose]) -> (f64, f64) {
     (speed, if kappa.is_finite() { kappa } else { 0.0 })
 }
 
-/// The view of camera `id`'s frame `frame_from_end` frames before the latest; pooled
-/// through a summed-area table when `pooled` (frames read all over), else read directly.
+/// The view of camera `id`'s frame `frame_from_end` frames before the latest, read
+/// directly (see [`View::pooled`] for frames read all over).
 fn find<'a>(
     input: &'a PlannerInput<'a>,
     id: CameraId,
     frame_from_end: usize,
     sigma: Option<f32>,
-    pooled: bool,
 ) -> Option<View<'a>> {
     input
         .cameras
@@ -333,14 +326,8 @@ fn find<'a>(
         .find(|c| c.calib.id == id)
         .and_then(|c| {
             let n = c.frames.len();
-            (n > frame_from_end).then(|| {
-                let rgb = c.frames[n - 1 - frame_from_end];
-                if pooled {
-                    View::new(&c.calib, rgb, sigma)
-                } else {
-                    View::plain(&c.calib, rgb, sigma)
-                }
-            })
+            (n > frame_from_end)
+                .then(|| View::plain(&c.calib, c.frames[n - 1 - frame_from_end], sigma))
         })
 }
 
@@ -350,14 +337,8 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
     // A summed-area table pays off only where patches grow large, on noisy frames; clean
     // frames are read through small patches summed directly.
     let latest = |id: CameraId| {
-        let v = find(input, id, 0, None, false)?;
-        if v.sigma > 6.0 {
-            let sigma = Some(v.sigma);
-            drop(v);
-            find(input, id, 0, sigma, true)
-        } else {
-            Some(v)
-        }
+        let v = find(input, id, 0, None)?;
+        Some(if v.sigma > 6.0 { v.pooled() } else { v })
     };
     let mut eyes = Eyes {
         wide: latest(CameraId::FrontWide),
@@ -379,11 +360,11 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
             let Some(pose) = pose_at(input.ego_history, -0.1 * back as f64) else {
                 continue;
             };
-            if let Some(v) = find(input, CameraId::FrontWide, back, wide_sigma, false) {
-                eyes.past_wide.push((v, pose));
+            if let Some(v) = find(input, CameraId::FrontWide, back, wide_sigma) {
+                eyes.past_wide.push((back, v, pose));
             }
-            if let Some(v) = find(input, CameraId::FrontTele, back, tele_sigma, false) {
-                eyes.past_tele.push((v, pose));
+            if let Some(v) = find(input, CameraId::FrontTele, back, tele_sigma) {
+                eyes.past_tele.push((back, v, pose));
             }
         }
     }
@@ -987,8 +968,19 @@ fn lead_speed(
                 eyes.wide.as_ref()
             }
         } else {
-            older = find(input, id, back, sigma, false);
-            older.as_ref()
+            // Reuse the earlier frame when the lane pooling already read it.
+            let past = if id == CameraId::FrontTele {
+                &eyes.past_tele
+            } else {
+                &eyes.past_wide
+            };
+            match past.iter().find(|p| p.0 == back) {
+                Some(p) => Some(&p.1),
+                None => {
+                    older = find(input, id, back, sigma);
+                    older.as_ref()
+                }
+            }
         };
         let Some(view) = view else { continue };
         // Ego pose at that frame (0.1 s per frame back).
@@ -1129,16 +1121,12 @@ fn strip_mean(eyes: &Eyes<'_>, x: f64, y0: f64, y1: f64, dep: f64) -> Option<Sam
     let v = 0.5 * (va + vb);
     let (u0, u1) = (ua.min(ub), ua.max(ub));
     let y0p = (v - rows / 2.0).round() as isize;
-    let (c, n) = view.rect(
+    view.rect_sample(
         u0.round() as isize,
         y0p,
         u1.round() as isize,
         y0p + rows.round().max(1.0) as isize,
-    )?;
-    Some(Sample {
-        c,
-        s: view.sigma / (n as f32).sqrt(),
-    })
+    )
 }
 
 /// The side of the square patch that reads a lamp `lamp_px` pixels across: enough pixels
@@ -1159,11 +1147,7 @@ fn block(view: &View<'_>, u: usize, v: usize, k: usize) -> Option<Sample> {
             s: view.sigma,
         });
     }
-    view.rect(u as isize, v as isize, (u + k) as isize, (v + k) as isize)
-        .map(|(c, n)| Sample {
-            c,
-            s: view.sigma / (n as f32).sqrt(),
-        })
+    view.rect_sample(u as isize, v as isize, (u + k) as isize, (v + k) as isize)
 }
 
 /// Lamp-coloured blocks of a view's region: the block side follows the noise (so a block's

@@ -58,8 +58,14 @@ impl<'a> View<'a> {
     /// Pools `rgb` (validated by the caller to be `width × height × 3` bytes) and measures
     /// its quality; `sigma` overrides the noise estimate (frames of one camera share it).
     pub fn new(calib: &'a CameraCalib, rgb: &'a [u8], sigma: Option<f32>) -> Self {
-        let mut v = Self::plain(calib, rgb, sigma);
-        let (w, h) = (v.width(), v.height());
+        Self::plain(calib, rgb, sigma).pooled()
+    }
+
+    /// This view with its summed-area table built (for frames read all over, through
+    /// patches of any size).
+    pub fn pooled(mut self) -> Self {
+        let (w, h) = (self.width(), self.height());
+        let rgb = self.rgb;
         let stride = (w + 1) * 3;
         let mut sat = SAT_BUFFERS
             .with(|b| b.borrow_mut().pop())
@@ -83,8 +89,8 @@ impl<'a> View<'a> {
                 *d += *p;
             }
         }
-        v.sat = sat;
-        v
+        self.sat = sat;
+        self
     }
 
     /// A view without a summed-area table, for frames read at a few points only: patch
@@ -170,11 +176,16 @@ impl<'a> View<'a> {
         }
         let x0 = (u - kw as f64 / 2.0).round() as isize;
         let y0 = (v - kh as f64 / 2.0).round() as isize;
-        self.rect(x0, y0, x0 + kw.max(1) as isize, y0 + kh.max(1) as isize)
-            .map(|(c, n)| Sample {
-                c,
-                s: self.sigma / (n as f32).sqrt(),
-            })
+        self.rect_sample(x0, y0, x0 + kw.max(1) as isize, y0 + kh.max(1) as isize)
+    }
+
+    /// [`View::rect`] as a [`Sample`]: the mean and its noise `σ̂/√n`.
+    #[inline]
+    pub fn rect_sample(&self, x0: isize, y0: isize, x1: isize, y1: isize) -> Option<Sample> {
+        self.rect(x0, y0, x1, y1).map(|(c, n)| Sample {
+            c,
+            s: self.sigma / (n as f32).sqrt(),
+        })
     }
 
     /// The single pixel at integer position, no averaging.
@@ -188,14 +199,12 @@ impl<'a> View<'a> {
         ]
     }
 
-    /// Pixel position of rig-frame point `p` when it is in the image.
-    pub fn project(&self, p: [f64; 3]) -> Option<(f64, f64)> {
-        self.calib
-            .project(p)
-            .map(|(u, v, _)| (u, v))
-            .filter(|&(u, v)| {
-                u >= 0.0 && v >= 0.0 && u < self.width() as f64 && v < self.height() as f64
-            })
+    /// Pixel position and range `(u, v, range)` of rig-frame point `p` when it is in the
+    /// image.
+    pub fn project(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
+        self.calib.project(p).filter(|&(u, v, _)| {
+            u >= 0.0 && v >= 0.0 && u < self.width() as f64 && v < self.height() as f64
+        })
     }
 
     /// The mean over a patch around ground-level or 3-D point `p`, sized to cover about

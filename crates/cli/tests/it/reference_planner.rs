@@ -14,7 +14,8 @@ struct Outcome {
     explanation: String,
 }
 
-fn run(clip: &Clip, frames: &[Vec<Frame>]) -> Outcome {
+/// The planner's input: `frames` (one list per camera of `clip`) and the clip's history.
+fn input<'a>(clip: &'a Clip, frames: &'a [Vec<Frame>]) -> PlannerInput<'a> {
     let cameras = clip
         .cameras
         .iter()
@@ -24,11 +25,14 @@ fn run(clip: &Clip, frames: &[Vec<Frame>]) -> Outcome {
             frames: fs.iter().map(Frame::data).collect(),
         })
         .collect();
-    let input = PlannerInput {
+    PlannerInput {
         cameras,
         ego_history: &clip.ego_history,
-    };
-    let out = ReferencePlanner::new().plan(&input).unwrap();
+    }
+}
+
+fn run(clip: &Clip, frames: &[Vec<Frame>]) -> Outcome {
+    let out = ReferencePlanner::new().plan(&input(clip, frames)).unwrap();
     Outcome {
         agree: out.decision == clip.scene.decision,
         ade: out.trajectory.ade(&clip.ground_truth),
@@ -163,20 +167,7 @@ fn perception_measures_the_noise_and_degrades_gradually() {
         let clip = generate_clip(&config, i).unwrap();
         for (k, cond) in conditions.iter().enumerate() {
             let fs = frames(&clip, i, cond);
-            let cameras = clip
-                .cameras
-                .iter()
-                .zip(&fs)
-                .map(|(c, f)| CameraInput {
-                    calib: c.calib,
-                    frames: f.iter().map(Frame::data).collect(),
-                })
-                .collect();
-            let input = PlannerInput {
-                cameras,
-                ego_history: &clip.ego_history,
-            };
-            let (p, plan) = planner.plan_with_perception(&input).unwrap();
+            let (p, plan) = planner.plan_with_perception(&input(&clip, &fs)).unwrap();
             agree[k] += usize::from(Some(plan.decision) == clip.scene.decision);
             sigma[k].push(p.quality.noise_sigma);
         }
