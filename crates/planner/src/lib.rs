@@ -1,6 +1,7 @@
 //! The reference planner: a camera-only driver that sees what a real camera planner sees —
 //! the frames of its cameras and the ego history — and nothing else. The crate depends on
-//! `fogline-types` only, so the crate graph itself proves it cannot read the scene.
+//! `fogline-types` and `fogline-monitor` (image quality from the pixels) only, so the crate
+//! graph itself proves it cannot read the scene.
 //!
 //! Perception is classical vision on the front-wide and front-tele cameras through their
 //! calibration and flat-ground geometry ([`perceive`]): lane markings fitted as a parabola
@@ -12,10 +13,16 @@
 //! the shared motion primitives, and a one-sentence explanation whose wording depends only on
 //! what was perceived.
 //!
-//! Under perturbation it fails for perceptual reasons only: noise turns asphalt into "not
-//! road" (phantom obstacles) and hides markings, fog washes out paint and lamps at range,
-//! darkness drops lit lamps below their brightness thresholds.
+//! Under perturbation it fails for perceptual reasons only: every reading is pooled as much as
+//! the measured noise asks for, so noise costs sensitivity (far, narrow and low-contrast
+//! things are lost first); fog washes out paint and lamps at range; darkness pushes
+//! low-contrast things into the quantisation floor.
+//!
+//! What it detects is an API too ([`ReferencePlanner::detect`], [`detect`]): the road users in
+//! the ego lane and the lane to its left with image boxes and tracks, and the deficit regions
+//! (black fill, red outline) recognised in each camera's latest frame.
 
+pub mod detect;
 pub mod perceive;
 pub mod plan;
 pub mod vision;
@@ -53,6 +60,27 @@ impl ReferencePlanner {
             explanation: plan.explanation,
             decision: Some(plan.decision),
         })
+    }
+
+    /// What the perception detects in `input`: the nearest road user in the ego lane and in
+    /// the lane to its left (kind, contact, extents, speed, track over the frames, and its
+    /// box in the camera it was read from), and the deficit regions in the latest frame of
+    /// every camera. Costs a planning call plus the left lane's object and the deficit scan.
+    pub fn detect(&self, input: &PlannerInput<'_>) -> Result<detect::Detections, PlannerError> {
+        validate(input)?;
+        let p = perceive::perceive_objects(input);
+        let objects = detect::objects(&p, input);
+        let mut deficits = Vec::new();
+        for cam in &input.cameras {
+            let Some(frame) = cam.frames.last() else {
+                continue;
+            };
+            let (w, h) = (cam.calib.width as usize, cam.calib.height as usize);
+            for d in detect::find_deficits(frame, w, h)? {
+                deficits.push((cam.calib.id, d));
+            }
+        }
+        Ok(detect::Detections { objects, deficits })
     }
 
     /// Plans and returns the perception behind the plan (for inspection and tests).

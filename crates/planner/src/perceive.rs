@@ -45,6 +45,9 @@ pub struct LeadSeen {
     pub gap: f64,
     /// Speed along the lane, m/s.
     pub speed: f64,
+    /// Standard error of `speed`, m/s (from the scatter of the track about its line; 0 when
+    /// the speed is the ego's own, for want of a track).
+    pub speed_se: f64,
     /// Brake lamps lit.
     pub braking: bool,
     /// Vehicle or person.
@@ -58,6 +61,10 @@ pub struct LeadSeen {
     /// Confidence in [0, 1]: how clearly its face stands out from the asphalt, given the
     /// measured noise.
     pub confidence: f64,
+    /// Its track over the clip's frames: the ground contact (m ahead of the rear axle at
+    /// the latest frame, ego motion removed) in the latest frame and 1, 2 and 3 frames
+    /// (0.1 s each) before it, where it was found.
+    pub track: [Option<f64>; 4],
 }
 
 /// The lane the ego drives in.
@@ -128,6 +135,10 @@ pub struct Perception {
     pub stop_sign: Option<f64>,
     /// The frames' measured quality.
     pub quality: ImageQuality,
+    /// The nearest object in the lane to the left (its lateral extents relative to that
+    /// lane's centre, one lane width left of the ego lane's); only looked for when asked
+    /// ([`perceive_objects`]), `None` otherwise.
+    pub left_object: Option<LeadSeen>,
 }
 
 /// Bins across the lane, m.
@@ -312,32 +323,49 @@ fn history_motion(h: &[EgoPose]) -> (f64, f64) {
     (speed, if kappa.is_finite() { kappa } else { 0.0 })
 }
 
-/// The view of camera `id`'s frame `frame_from_end` frames before the latest, read
-/// directly (see [`View::pooled`] for frames read all over).
-fn find<'a>(
-    input: &'a PlannerInput<'a>,
-    id: CameraId,
-    frame_from_end: usize,
-    sigma: Option<f32>,
-) -> Option<View<'a>> {
+/// The view of camera `id`'s latest frame, read directly (see [`View::pooled`] for frames
+/// read all over), with its quality measured.
+fn find<'a>(input: &'a PlannerInput<'a>, id: CameraId) -> Option<View<'a>> {
     input
         .cameras
         .iter()
         .find(|c| c.calib.id == id)
-        .and_then(|c| {
-            let n = c.frames.len();
-            (n > frame_from_end)
-                .then(|| View::plain(&c.calib, c.frames[n - 1 - frame_from_end], sigma))
-        })
+        .and_then(|c| c.frames.last().map(|f| View::plain(&c.calib, f, None)))
+}
+
+/// The frame `back` frames before `latest`'s, of the same camera, sharing its measured
+/// quality ([`View::sibling`]).
+fn earlier<'a>(
+    input: &'a PlannerInput<'a>,
+    latest: Option<&View<'a>>,
+    back: usize,
+) -> Option<View<'a>> {
+    let latest = latest?;
+    let cam = input
+        .cameras
+        .iter()
+        .find(|c| c.calib.id == latest.calib.id)?;
+    let n = cam.frames.len();
+    (n > back).then(|| latest.sibling(cam.frames[n - 1 - back]))
 }
 
 /// Runs every perception step on `input`.
 pub fn perceive(input: &PlannerInput<'_>) -> Perception {
+    perceive_with(input, false)
+}
+
+/// [`perceive`], and the nearest object in the lane to the left as well
+/// ([`Perception::left_object`]; planning does not need it, so [`perceive`] skips it).
+pub fn perceive_objects(input: &PlannerInput<'_>) -> Perception {
+    perceive_with(input, true)
+}
+
+fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
     let (speed, kappa_history) = history_motion(input.ego_history);
     // A summed-area table pays off only where patches grow large, on noisy frames; clean
     // frames are read through small patches summed directly.
     let latest = |id: CameraId| {
-        let v = find(input, id, 0, None)?;
+        let v = find(input, id)?;
         Some(if v.sigma > 6.0 { v.pooled() } else { v })
     };
     let mut eyes = Eyes {
@@ -354,16 +382,14 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
         .fold(0f32, f32::max);
     // With noise, the earlier frames are pooled too (static features only).
     if sigma > 6.0 {
-        let wide_sigma = eyes.wide.as_ref().map(|v| v.sigma);
-        let tele_sigma = eyes.tele.as_ref().map(|v| v.sigma);
         for back in 1..4 {
             let Some(pose) = pose_at(input.ego_history, -0.1 * back as f64) else {
                 continue;
             };
-            if let Some(v) = find(input, CameraId::FrontWide, back, wide_sigma) {
+            if let Some(v) = earlier(input, eyes.wide.as_ref(), back) {
                 eyes.past_wide.push((back, v, pose));
             }
-            if let Some(v) = find(input, CameraId::FrontTele, back, tele_sigma) {
+            if let Some(v) = earlier(input, eyes.tele.as_ref(), back) {
                 eyes.past_tele.push((back, v, pose));
             }
         }
@@ -413,14 +439,41 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
         .filter(|&x| x <= x_max)
         .collect();
     // On a stop line or a crossing, grey brighter than asphalt is paint seen edge-on.
-    let painted = |x: f64| {
-        stop_line.is_some_and(|s| (x - s).abs() < 1.0)
-            || zebra.is_some_and(|z| x > z - 0.5 && x < z + 4.0)
+    // A reading whose patch spans ground from `x0` to `x1` (noisy patches rise in the image
+    // over farther ground) is painted when that span meets the paint.
+    let painted = |x0: f64, x1: f64| {
+        stop_line.is_some_and(|s| x0 < s + 1.0 && x1 > s - 1.0)
+            || zebra.is_some_and(|z| x0 < z + 4.0 && x1 > z - 0.5)
     };
     let inner = lane_width / 2.0 - 0.4;
-    let ego_bins = first_blocked(&eyes, &xs, &centre, 0.0, inner, &road, &painted);
-    let left_bins = first_blocked(&eyes, &xs, &centre, lane_width, 1.0, &road, &painted);
-    let road_end = road_end(&ego_bins, &left_bins);
+    let half = lane_width / 2.0;
+    let ego = Span {
+        shift: 0.0,
+        inner,
+        half,
+    };
+    let left = Span {
+        shift: lane_width,
+        inner: 1.0,
+        half,
+    };
+    let ego_bins = first_blocked(&eyes, &xs, &centre, ego, &road, &painted);
+    let left_bins = first_blocked(&eyes, &xs, &centre, left, &road, &painted);
+    // Noise hides the far edge of a T-junction from the fine bins' small patches; the
+    // static ground pooled over the clip's frames and across half a metre still shows it.
+    // Taken only with asphalt opening to the right before it (what a T-junction is), so
+    // that a vehicle ahead is never mistaken for the end of the road.
+    let road_end = road_end(&ego_bins, &left_bins).or_else(|| {
+        (sigma > 6.0)
+            .then(|| road_end_static(&eyes, &xs, &centre, lane_width, &road, &painted))
+            .flatten()
+            .filter(|&x_end| right_branch(&eyes, &centre, x_end, lane_width, &road))
+            .filter(|&x_end| {
+                // A road user in the ego lane at that distance is what blocks it.
+                lead_of(input, &eyes, &ego_bins, &centre, &road, speed)
+                    .is_none_or(|l| l.contact_x > x_end + 3.0)
+            })
+    });
     let right_branch =
         road_end.is_some_and(|x_end| right_branch(&eyes, &centre, x_end, lane_width, &road));
     let lead = road_end
@@ -445,17 +498,28 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
     let left_lane_free = left_dashed
         && left_bins
             .iter()
-            .filter(|x| !x.is_nan())
-            .all(|&x| x > horizon);
+            .enumerate()
+            .filter(|&(i, &x)| x <= horizon && supported(&left_bins, i))
+            .count()
+            == 0;
     // Anything nearly stationary standing on a crossing is a road user crossing there.
     let lead = lead.map(|mut l| {
-        if zebra.is_some_and(|z| l.contact_x > z - 1.0 && l.contact_x < z + 4.0) && l.speed < 2.0 {
+        // Stationary within its speed's uncertainty (noisy frames jitter the track).
+        if zebra.is_some_and(|z| l.contact_x > z - 1.0 && l.contact_x < z + 4.0)
+            && l.speed - 2.0 * l.speed_se < 2.0
+        {
             l.kind = ObjectKind::Person;
         }
         l
     });
     let light = traffic_light(&eyes);
     let stop_sign = stop_sign(&eyes, gain);
+    let left_object = left_object
+        .then(|| {
+            let left_centre = |x: f64| centre(x) + lane_width;
+            lead_of(input, &eyes, &left_bins, &left_centre, &road, speed)
+        })
+        .flatten();
     Perception {
         speed,
         kappa_history,
@@ -473,6 +537,7 @@ pub fn perceive(input: &PlannerInput<'_>) -> Perception {
         light,
         stop_sign,
         quality,
+        left_object,
     }
 }
 
@@ -698,33 +763,99 @@ fn sample_distances() -> Vec<f64> {
 /// Is the ground at `(x, y)` blocked (not road)? `painted` marks distances with transverse
 /// paint, where grey brighter than asphalt is paint seen edge-on.
 #[inline]
-fn blocked_at(eyes: &Eyes<'_>, road: &RoadModel, x: f64, y: f64, lat: f64, painted: bool) -> bool {
+fn blocked_at(
+    eyes: &Eyes<'_>,
+    road: &RoadModel,
+    x: f64,
+    y: f64,
+    lat: f64,
+    reach: f64,
+    painted: bool,
+) -> bool {
     let refs = road.refs(x);
-    eyes.ground_up(x, y, lat, 4.0).is_some_and(|s| {
-        let paint_blend = painted
-            && chroma(s.c) < 30.0 * refs.gain.max(0.5) + 4.5 * s.s
-            && lum(s.c) > lum(refs.road) - 10.0 * refs.gain;
-        !(is_road(s, &refs) || paint_blend)
-    })
+    eyes.ground_up(x, y, lat, reach)
+        .is_some_and(|s| not_road(s, &refs, painted))
 }
 
-/// For each lateral bin of the lane centred `shift` m left of the ego lane, the first distance
+/// A ground reading that is neither asphalt nor paint; where `painted` (transverse paint at
+/// that distance), grey brighter than asphalt is taken for paint seen edge-on.
+#[inline]
+fn not_road(s: Sample, refs: &Refs, painted: bool) -> bool {
+    let paint_blend = painted
+        && chroma(s.c) < 30.0 * refs.gain.max(0.5) + 4.5 * s.s
+        && lum(s.c) > lum(refs.road) - 10.0 * refs.gain;
+    !(is_road(s, refs) || paint_blend)
+}
+
+/// [`road_end`] from coarse bins (three per lane) across the ego lane and the lane to its
+/// left, read through the static ground pooled over the clip's frames
+/// ([`Eyes::ground_static`]): the far edge of a T-junction is static, so four frames and half
+/// a metre across quiet the noise that hides it from the fine bins.
+fn road_end_static(
+    eyes: &Eyes<'_>,
+    xs: &[f64],
+    centre: &dyn Fn(f64) -> f64,
+    lane_width: f64,
+    road: &RoadModel,
+    painted: &dyn Fn(f64, f64) -> bool,
+) -> Option<f64> {
+    // Three bins across each lane (its middle and 0.75 m either side), every other
+    // distance of the fine scan: a far edge spans the road, so a coarse look finds it.
+    let ys = [
+        -0.75,
+        0.0,
+        0.75,
+        lane_width - 0.75,
+        lane_width,
+        lane_width + 0.75,
+    ];
+    let bins: Vec<f64> = ys
+        .iter()
+        .map(|&y| {
+            let mut run = 0;
+            for (i, &x) in xs.iter().enumerate().step_by(2) {
+                let blocked = eyes
+                    .ground_static(x, centre(x) + y, 0.5, 2.0)
+                    .is_some_and(|s| not_road(s, &road.refs(x), painted(x - 1.0, x + 1.0)));
+                run = if blocked { run + 1 } else { 0 };
+                if run == 3 {
+                    return xs[i - 4];
+                }
+            }
+            f64::INFINITY
+        })
+        .collect();
+    road_end(&bins, &[])
+}
+
+/// The lane a bin scan covers: its centre `shift` m left of the ego lane's, the half-width
+/// `inner` of its sampled interior and its half-width `half` to the markings, m.
+#[derive(Clone, Copy)]
+struct Span {
+    shift: f64,
+    inner: f64,
+    half: f64,
+}
+
+/// For each lateral bin of the lane `lane` (see [`Span`]), the first distance
 /// at which the ground is not road (four samples in a row), or `+inf`.
 fn first_blocked(
     eyes: &Eyes<'_>,
     xs: &[f64],
     centre: &dyn Fn(f64) -> f64,
-    shift: f64,
-    inner: f64,
+    lane: Span,
     road: &RoadModel,
-    painted: &dyn Fn(f64) -> bool,
+    painted: &dyn Fn(f64, f64) -> bool,
 ) -> Vec<f64> {
+    let Span { shift, inner, half } = lane;
     (-HALF_LANE_BINS..=HALF_LANE_BINS)
         .map(|b| {
             if (f64::from(b) * BIN).abs() > inner {
                 return f64::NAN; // not sampled: on or beyond the lane's markings
             }
             let y = shift + f64::from(b) * BIN;
+            // Patches rise over farther ground only on noisy frames (see `Eyes::ground_up`).
+            let rises = eyes.wide.as_ref().is_some_and(|v| v.sigma > 12.0);
             // Pool across at most 0.5 m, and never onto the lane's markings (a blend of
             // paint and asphalt is neither).
             let lat = (2.0 * (inner + 0.2 - (f64::from(b) * BIN).abs())).clamp(0.1, 0.25);
@@ -732,7 +863,14 @@ fn first_blocked(
             // painted line seen at a grazing angle does not.
             let mut run = 0;
             for (i, &x) in xs.iter().enumerate() {
-                let blocked = blocked_at(eyes, road, x, centre(x) + y, lat, painted(x));
+                // A patch rising in the image reads ground farther out *and* farther from
+                // the camera's axis (image columns fan out on the ground): it may rise only
+                // as far as keeps it off the lane's outer marking.
+                let yr = centre(x) + y;
+                let room = (half - 0.1 - f64::from(b) * BIN * yr.signum()).max(0.05);
+                let reach = (x * room / (2.0 * yr.abs().max(1e-3))).clamp(0.3, 4.0);
+                let rise = if rises { reach } else { 0.0 };
+                let blocked = blocked_at(eyes, road, x, yr, lat, reach, painted(x, x + rise));
                 run = if blocked { run + 1 } else { 0 };
                 if run == 4 {
                     return xs[i - 3];
@@ -741,6 +879,15 @@ fn first_blocked(
             f64::INFINITY
         })
         .collect()
+}
+
+/// Bin `i` is blocked and so is a neighbour within two bins, at about the same distance
+/// (3 m): a road user is wider than one bin; a single blocked bin is a speck of noise.
+fn supported(bins: &[f64], i: usize) -> bool {
+    let x = bins[i];
+    x.is_finite()
+        && (i.saturating_sub(2)..(i + 3).min(bins.len()))
+            .any(|j| j != i && (bins[j] - x).abs() < 3.0)
 }
 
 /// The road ends where (nearly) every bin of the ego lane and of the lane to its left is
@@ -782,7 +929,7 @@ fn right_branch(
         let refs = road.refs(x);
         for k in 0..6 {
             let y = centre(x) - w / 2.0 - 1.5 - 0.5 * k as f64;
-            if let Some(s) = eyes.ground(x, y, 0.4, 0.5) {
+            if let Some(s) = eyes.ground_static(x, y, 0.4, 0.5) {
                 n += 1;
                 road_n += usize::from(is_road(s, &refs));
             }
@@ -808,18 +955,36 @@ fn lead_of(
         .collect();
     // The object: the nearest contact with a blocked neighbour bin and at least three bins
     // blocked within 6 m of it; a lone blocked bin is a speck, not a road user.
-    let mut order: Vec<f64> = finite.iter().map(|p| p.1).collect();
-    order.sort_by(f64::total_cmp);
-    let (contact, obj) = order.iter().find_map(|&c| {
+    let mut order: Vec<(f64, f64)> = finite.clone();
+    order.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let (contact, obj) = order.iter().find_map(|&(at, c)| {
         let obj: Vec<(f64, f64)> = finite
             .iter()
             .copied()
             .filter(|p| p.1 >= c && p.1 < c + 6.0)
             .collect();
         // Lateral neighbours of the contact bin within the object.
-        let at = finite.iter().find(|p| p.1 == c)?.0;
         let near = obj.iter().filter(|p| (p.0 - at).abs() <= 3.5 * BIN).count();
-        (near >= 2 && obj.len() >= 3).then_some((c, obj))
+        // A narrow road user (a walker is 0.3 m across) blocks few bins at its contact,
+        // but it also hides the ground behind it from the bins whose rays pass its body:
+        // bins blocked farther on, along the same bearing from the camera, are its support.
+        let support = || {
+            let (cx, cy) = eyes
+                .view_for([c, centre(c) + at, 0.0])
+                .map_or((0.0, 0.0), |v| (v.calib.x_m, v.calib.y_m));
+            let bearing = |y: f64, x: f64| (y - cy) / (x - cx).max(1.0);
+            let lo = bearing(centre(c) + at - 0.25, c);
+            let hi = bearing(centre(c) + at + 0.25, c);
+            finite
+                .iter()
+                .filter(|p| {
+                    p.1 >= c
+                        && p.1 < c + 30.0
+                        && (lo..=hi).contains(&bearing(centre(p.1) + p.0, p.1))
+                })
+                .count()
+        };
+        (near >= 2 && (obj.len() >= 3 || support() >= 3)).then_some((c, obj))
     })?;
     let right_edge = obj.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
     let left_edge = obj.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
@@ -846,12 +1011,25 @@ fn lead_of(
         };
         let start = (-3..=3).find(|&b| hit(b));
         let Some(b0) = start else { return 0.0 };
+        // Noise drops single samples from a face: the run bridges one missed bin.
         let (mut lo, mut hi) = (b0, b0);
-        while lo > -25 && hit(lo - 1) {
-            lo -= 1;
+        while lo > -25 {
+            if hit(lo - 1) {
+                lo -= 1;
+            } else if lo > -24 && hit(lo - 2) {
+                lo -= 2;
+            } else {
+                break;
+            }
         }
-        while hi < 25 && hit(hi + 1) {
-            hi += 1;
+        while hi < 25 {
+            if hit(hi + 1) {
+                hi += 1;
+            } else if hi < 24 && hit(hi + 2) {
+                hi += 2;
+            } else {
+                break;
+            }
         }
         f64::from(hi - lo + 1) * BIN
     };
@@ -878,17 +1056,19 @@ fn lead_of(
         })
     };
     let braking = brake_lamps(eyes, contact, centre);
-    let speed = lead_speed(input, eyes, centre, road, contact, ego_speed, &obj);
+    let (speed, speed_se, track) = lead_speed(input, eyes, centre, road, contact, ego_speed, &obj);
     Some(LeadSeen {
         contact_x: contact,
         gap: contact - REAR_WHEEL_TO_BUMPER - fogline_types::motion::EGO_FRONT_M,
         speed,
+        speed_se,
         braking,
         kind,
         width_m,
         right_edge,
         left_edge,
         confidence,
+        track,
     })
 }
 
@@ -948,16 +1128,17 @@ fn lead_speed(
     contact0: f64,
     ego_speed: f64,
     obj: &[(f64, f64)],
-) -> f64 {
+) -> (f64, f64, [Option<f64>; 4]) {
     let bins: Vec<f64> = obj.iter().map(|p| p.0).collect();
     let hist = input.ego_history;
     let mut ts = Vec::new();
     let mut xs = Vec::new();
+    let mut track = [None; 4];
     // Only the camera that sees the lead is needed in the earlier frames.
-    let (id, sigma) = if contact0 >= TELE_FROM_M && eyes.tele.is_some() {
-        (CameraId::FrontTele, eyes.tele.as_ref().map(|v| v.sigma))
+    let id = if contact0 >= TELE_FROM_M && eyes.tele.is_some() {
+        CameraId::FrontTele
     } else {
-        (CameraId::FrontWide, eyes.wide.as_ref().map(|v| v.sigma))
+        CameraId::FrontWide
     };
     for back in 0..4 {
         let older;
@@ -977,7 +1158,12 @@ fn lead_speed(
             match past.iter().find(|p| p.0 == back) {
                 Some(p) => Some(&p.1),
                 None => {
-                    older = find(input, id, back, sigma);
+                    let latest = if id == CameraId::FrontTele {
+                        eyes.tele.as_ref()
+                    } else {
+                        eyes.wide.as_ref()
+                    };
+                    older = earlier(input, latest, back);
                     older.as_ref()
                 }
             }
@@ -1007,10 +1193,11 @@ fn lead_speed(
         if best.is_finite() {
             ts.push(t);
             xs.push(best + ego_x);
+            track[back] = Some(best + ego_x);
         }
     }
     if ts.len() < 3 {
-        return ego_speed;
+        return (ego_speed, 0.0, track);
     }
     let n = ts.len() as f64;
     let (mt, mx) = (ts.iter().sum::<f64>() / n, xs.iter().sum::<f64>() / n);
@@ -1020,7 +1207,18 @@ fn lead_speed(
         sxx += (t - mt) * (t - mt);
     }
     let v = sxy / sxx.max(1e-9);
-    if v.is_finite() { v.max(0.0) } else { ego_speed }
+    if !v.is_finite() {
+        return (ego_speed, 0.0, track);
+    }
+    // The slope's standard error from the residuals (at least the 0.1 m step of the scan).
+    let ssr: f64 = ts
+        .iter()
+        .zip(&xs)
+        .map(|(t, x)| (x - mx - v * (t - mt)).powi(2))
+        .sum();
+    let var = (ssr / (n - 2.0).max(1.0)).max(0.05f64.powi(2));
+    let se = (var / sxx.max(1e-9)).sqrt();
+    (v.max(0.0), se, track)
 }
 
 /// Stop line (a solid white band across the lane) and zebra (half-covered bands over ≥ 2 m)
@@ -1159,6 +1357,9 @@ fn lamp_blocks(
     max_k: usize,
 ) -> (usize, Vec<(LampColour, usize, usize)>) {
     let k = lamp_patch(view.sigma, max_k as f64 / 0.6);
+    // Blocks of 3 px or more overlap by half their side, so that a lamp only a little wider
+    // than a block still holds one whole block whatever its position (smaller blocks tile).
+    let step = if k >= 3 { k.div_ceil(2) } else { k };
     let mut out = Vec::new();
     let mut v = v_range.0;
     while v + k <= v_range.1 {
@@ -1169,9 +1370,9 @@ fn lamp_blocks(
             {
                 out.push((col, u, v));
             }
-            u += k;
+            u += step;
         }
-        v += k;
+        v += step;
     }
     (k, out)
 }
@@ -1249,10 +1450,24 @@ fn stop_sign(eyes: &Eyes<'_>, gain: f32) -> Option<f64> {
         while v + k <= (cy - 1.0).max(0.0) as usize {
             let mut u = cx as usize + 3;
             while u + k <= w {
-                if block(view, u, v, k).is_some_and(|s| is_sign_red(s, gain)) {
+                // A block, or on noisy frames the block of twice its side starting there
+                // (four times the pixels, half the noise: a near sign's face holds it).
+                let big = (k > 1 && u + 2 * k <= w && v + 2 * k <= cy as usize)
+                    .then(|| {
+                        view.rect_sample(
+                            u as isize,
+                            v as isize,
+                            (u + 2 * k) as isize,
+                            (v + 2 * k) as isize,
+                        )
+                    })
+                    .flatten()
+                    .is_some_and(|s| is_sign_red(s, gain));
+                let side = if big { 2 * k } else { k };
+                if big || block(view, u, v, k).is_some_and(|s| is_sign_red(s, gain)) {
                     // Every pixel of the block counts.
-                    for dv in 0..k {
-                        for du in 0..k {
+                    for dv in 0..side {
+                        for du in 0..side {
                             pts.push((u + du, v + dv));
                         }
                     }
@@ -1266,6 +1481,7 @@ fn stop_sign(eyes: &Eyes<'_>, gain: f32) -> Option<f64> {
         }
         // The largest cluster by column gaps.
         pts.sort_unstable();
+        pts.dedup();
         let mut best: &[(usize, usize)] = &[];
         let mut start = 0;
         for i in 1..=pts.len() {
@@ -1301,4 +1517,39 @@ fn stop_sign(eyes: &Eyes<'_>, gain: f32) -> Option<f64> {
         return Some(d + view.calib.x_m);
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lone_blocked_bin_is_a_speck_and_a_neighbour_supports_it() {
+        let inf = f64::INFINITY;
+        let bins = [
+            inf, 7.8, inf, inf, inf, 30.0, 31.0, inf, 40.0, inf, inf, 60.0,
+        ];
+        // 7.8: nothing blocked within two bins; 30.0 and 31.0 support each other; 40.0 has
+        // 31.0 two bins away but 9 m farther; 60.0 is alone at the edge.
+        let supported: Vec<usize> = (0..bins.len()).filter(|&i| supported(&bins, i)).collect();
+        assert_eq!(supported, vec![5, 6]);
+        assert!(!super::supported(&[f64::NAN, 5.0, f64::NAN], 1));
+    }
+
+    #[test]
+    fn the_road_ends_where_most_bins_of_both_lanes_are_blocked_at_one_distance() {
+        let inf = f64::INFINITY;
+        let nan = f64::NAN;
+        // A T-junction: every sampled bin blocked at 36 m ± 1 m, the unsampled ones NaN.
+        let ego = [nan, 36.0, 36.5, 35.5, 36.0, nan];
+        let left = [nan, 36.0, 37.0, 36.0, nan];
+        assert_eq!(road_end(&ego, &left), Some(36.0));
+        // A car in the ego lane only: the left lane is open, so the road goes on.
+        let left_open = [nan, inf, inf, inf, nan];
+        assert_eq!(road_end(&ego, &left_open), None);
+        // Blocked at scattered distances: no single far edge.
+        let scattered = [nan, 12.0, 25.0, 40.0, 55.0, nan];
+        assert_eq!(road_end(&scattered, &left), None);
+        assert_eq!(road_end(&[nan, nan], &[]), None);
+    }
 }

@@ -111,6 +111,20 @@ impl<'a> View<'a> {
         }
     }
 
+    /// An earlier frame of the same camera, read directly: it shares this view's measured
+    /// quality (σ̂, white level and the clipping inverse), which a clip's frames have in
+    /// common, instead of measuring it again.
+    pub fn sibling(&self, rgb: &'a [u8]) -> Self {
+        Self {
+            calib: self.calib,
+            rgb,
+            sat: Vec::new(),
+            sigma: self.sigma,
+            white: self.white,
+            censor: self.censor.clone(),
+        }
+    }
+
     /// Width in pixels.
     pub fn width(&self) -> usize {
         self.calib.width as usize

@@ -183,19 +183,138 @@ fn perception_measures_the_noise_and_degrades_gradually() {
     );
     assert!(mean(&sigma[2]) > 45.0, "noise_70 σ̂ {}", mean(&sigma[2]));
     let share = |k: usize| agree[k] as f64 / n as f64;
-    // Measured on 1,996 clips (docs/world.md): 96 % clean, 86 % at σ 30, 59 % at σ 70.
+    // Measured on 1,996 clips (docs/world.md): 96 % clean, 95 % at σ 30, 83 % at σ 70.
     assert!(share(0) >= 0.85, "clean {}", share(0));
     assert!(
-        share(1) >= share(0) - 0.2,
+        share(1) >= share(0) - 0.1,
         "noise_30 {} vs clean {}",
         share(1),
         share(0)
     );
-    assert!(share(2) >= 0.4, "noise_70 {}", share(2));
+    assert!(share(2) >= 0.55, "noise_70 {}", share(2));
     assert!(
         share(2) <= share(1),
         "noise_70 {} vs noise_30 {}",
         share(2),
         share(1)
     );
+}
+
+/// Intersection over union of two `[x0, y0, x1, y1]` boxes.
+fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
+    let w = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
+    let h = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+    let inter = w * h;
+    let area = |r: [f64; 4]| (r[2] - r[0]) * (r[3] - r[1]);
+    inter / (area(a) + area(b) - inter).max(1e-9)
+}
+
+/// What the perception detects is an API that downstream code can use instead of the
+/// renderer's boxes: its road users' boxes cover the renderer's box of a road user, and the
+/// deficit regions it recognises in masked frames (from the pixels alone) are the ones the
+/// mask drew.
+#[test]
+fn detections_match_the_renderers_boxes_and_the_drawn_deficits() {
+    use fogline_planner::detect::LaneOf;
+    let config = WorldConfig {
+        seed: 13,
+        depth: false,
+        mix: ScenarioMix::paper_scaled(40),
+        ..WorldConfig::default()
+    };
+    let planner = ReferencePlanner::new();
+    let mask = Perturbation::parse("mask_all").unwrap().prepare(0).unwrap();
+    let (mut objects, mut matched) = (0, 0);
+    let (mut drawn, mut found_exact, mut spurious) = (0, 0, 0);
+    let n = config.mix.total();
+    for i in 0..n {
+        let clip = generate_clip(&config, i).unwrap();
+        let clean = frames(&clip, i, "clean");
+        let d = planner.detect(&input(&clip, &clean)).unwrap();
+        assert!(d.deficits.is_empty(), "clip {i}: deficits in a clean frame");
+        for o in d.objects.iter().filter(|o| o.lane == LaneOf::Ego) {
+            objects += 1;
+            let cam = clip
+                .cameras
+                .iter()
+                .find(|c| c.calib.id == o.camera)
+                .unwrap();
+            let truth = &cam.frames.last().unwrap().boxes;
+            let best = truth
+                .iter()
+                .filter(|b| {
+                    ["car", "truck", "pedestrian", "cyclist", "barrier"].contains(&b.class.as_str())
+                })
+                .map(|b| {
+                    iou(
+                        o.bbox,
+                        [b.x_px, b.y_px, b.x_px + b.width_px, b.y_px + b.height_px],
+                    )
+                })
+                .fold(0.0, f64::max);
+            matched += usize::from(best >= 0.2);
+        }
+        // Every object masked in the latest frames, then found again from the pixels.
+        for (c, cam) in clip.cameras.iter().enumerate() {
+            {
+                let f = cam.frames.last().unwrap();
+                let mut fi = FrameInput::new(&f.image, FrameKey::new(i as u64, c as u64, 3));
+                fi.boxes = &f.boxes;
+                let applied = mask.apply(&fi).unwrap();
+                let found = fogline_planner::detect::find_deficits(
+                    applied.frame.data(),
+                    cam.calib.width as usize,
+                    cam.calib.height as usize,
+                )
+                .unwrap();
+                let rects: Vec<_> = applied.deficits.iter().map(|r| r.rect).collect();
+                // A region apart from every other one (its outline cannot merge) and large
+                // enough to hold a ring is found exactly.
+                for (k, r) in rects.iter().enumerate() {
+                    let apart = rects.iter().enumerate().all(|(j, o)| {
+                        j == k
+                            || o.x0 > r.x1 + 1
+                            || r.x0 > o.x1 + 1
+                            || o.y0 > r.y1 + 1
+                            || r.y0 > o.y1 + 1
+                    });
+                    if apart && r.x1 - r.x0 >= 8 && r.y1 - r.y0 >= 8 {
+                        drawn += 1;
+                        found_exact += usize::from(
+                            found
+                                .iter()
+                                .any(|d| (d.x0, d.y0, d.x1, d.y1) == (r.x0, r.y0, r.x1, r.y1)),
+                        );
+                    }
+                }
+                // Nothing is found where no mask was drawn.
+                spurious += found
+                    .iter()
+                    .filter(|d| {
+                        !rects.iter().any(|r| {
+                            d.x0 >= r.x0.saturating_sub(1)
+                                && d.x1 <= r.x1 + 1
+                                && d.y0 >= r.y0.saturating_sub(1)
+                                && d.y1 <= r.y1 + 1
+                                || (r.x0 >= d.x0 && r.x1 <= d.x1 && r.y0 >= d.y0 && r.y1 <= d.y1)
+                        })
+                    })
+                    .count();
+            }
+        }
+    }
+    eprintln!(
+        "objects {objects}, matched {matched}; deficits drawn {drawn}, found exactly {found_exact}, spurious {spurious}"
+    );
+    assert!(
+        objects >= 10,
+        "only {objects} objects detected on {n} clips"
+    );
+    assert!(
+        matched * 4 >= objects * 3,
+        "{matched} of {objects} detected objects overlap a renderer box"
+    );
+    assert!(drawn >= 20, "only {drawn} separate deficits drawn");
+    assert_eq!(found_exact, drawn, "deficits found exactly");
+    assert_eq!(spurious, 0, "deficits found where none was drawn");
 }

@@ -1,0 +1,378 @@
+//! Detections as an API: the road users the perception found — with their boxes in the image
+//! and their tracks over the clip's frames — and the perception-deficit regions recognised in
+//! a frame by what they look like (a black fill inside a red outline). Closed-loop code and
+//! the override can work from these instead of the renderer's ground-truth boxes.
+//!
+//! ```
+//! use fogline_planner::detect::find_deficits;
+//!
+//! // A 64 × 48 grey frame with one deficit drawn on it: black, outlined 2 px red.
+//! let (w, h) = (64usize, 48usize);
+//! let mut rgb = vec![120u8; w * h * 3];
+//! for y in 10..30 {
+//!     for x in 20..44 {
+//!         let ring = x < 22 || x >= 42 || y < 12 || y >= 28;
+//!         let px = if ring { [255, 0, 0] } else { [0, 0, 0] };
+//!         rgb[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&px);
+//!     }
+//! }
+//! let found = find_deficits(&rgb, w, h).unwrap();
+//! assert_eq!(found.len(), 1);
+//! assert_eq!((found[0].x0, found[0].y0, found[0].x1, found[0].y1), (20, 10, 44, 30));
+//! ```
+
+use crate::PlannerError;
+use crate::perceive::{LeadSeen, ObjectKind, Perception};
+use fogline_types::clip::{CameraCalib, CameraId, PlannerInput};
+
+/// A deficit region found in a frame: a rectangle filled black inside a red outline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeficitSeen {
+    /// Left column (inclusive), px.
+    pub x0: u32,
+    /// Top row (inclusive), px.
+    pub y0: u32,
+    /// Right column (exclusive), px.
+    pub x1: u32,
+    /// Bottom row (exclusive), px.
+    pub y1: u32,
+    /// Share of the rectangle's 2-pixel border that reads red, in [0, 1].
+    pub outline: f64,
+    /// Mean luminance of the interior, 0–255 (near 0 for a black fill; noise clipped at 0
+    /// raises it: about 0.4 σ).
+    pub fill_lum: f64,
+}
+
+/// Which lane an object was found in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LaneOf {
+    /// The ego lane.
+    Ego,
+    /// The lane to its left.
+    Left,
+}
+
+/// A road user the perception found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObjectSeen {
+    /// Its lane.
+    pub lane: LaneOf,
+    /// What the perception reads in the lane: contact, extents, speed, kind, track.
+    pub seen: LeadSeen,
+    /// The camera whose latest frame it was read from.
+    pub camera: CameraId,
+    /// Its box in that frame `[x0, y0, x1, y1]`, px (clamped to the image): the perceived
+    /// footprint raised to the height of its kind (1.5 m for a vehicle, 1.8 m for a person).
+    pub bbox: [f64; 4],
+}
+
+/// What [`crate::ReferencePlanner::detect`] finds in one input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Detections {
+    /// Road users in the ego lane and the lane to its left, nearest first per lane.
+    pub objects: Vec<ObjectSeen>,
+    /// Deficit regions per camera, in the latest frame of each camera of the input.
+    pub deficits: Vec<(CameraId, DeficitSeen)>,
+}
+
+/// Objects of `p` (from [`crate::perceive::perceive_objects`]) with their image boxes.
+pub(crate) fn objects(p: &Perception, input: &PlannerInput<'_>) -> Vec<ObjectSeen> {
+    let centre = |x: f64| p.lane_offset + 0.5 * p.kappa * x * x;
+    let mut out = Vec::new();
+    for (lane, seen, shift) in [
+        (LaneOf::Ego, p.lead, 0.0),
+        (LaneOf::Left, p.left_object, p.lane_width),
+    ] {
+        let Some(seen) = seen else { continue };
+        let x = seen.contact_x;
+        let yc = centre(x) + shift;
+        let height = match seen.kind {
+            ObjectKind::Vehicle => 1.5,
+            ObjectKind::Person => 1.8,
+        };
+        let corners = [
+            [x, yc + seen.right_edge - 0.05],
+            [x, yc + seen.left_edge + 0.05],
+        ];
+        let tele = (x >= 13.0)
+            .then(|| {
+                input
+                    .cameras
+                    .iter()
+                    .find(|c| c.calib.id == CameraId::FrontTele)
+            })
+            .flatten();
+        let wide = input
+            .cameras
+            .iter()
+            .find(|c| c.calib.id == CameraId::FrontWide);
+        let boxed = [tele, wide]
+            .into_iter()
+            .flatten()
+            .find_map(|c| image_box(&c.calib, &corners, height).map(|b| (c.calib.id, b)));
+        if let Some((camera, bbox)) = boxed {
+            out.push(ObjectSeen {
+                lane,
+                seen,
+                camera,
+                bbox,
+            });
+        }
+    }
+    out
+}
+
+/// The box in `calib`'s image of the upright rectangle standing on the ground segment
+/// `corners` and `height` m tall, clamped to the image; `None` when its foot is not in view.
+fn image_box(calib: &CameraCalib, corners: &[[f64; 2]; 2], height: f64) -> Option<[f64; 4]> {
+    let (w, h) = (f64::from(calib.width), f64::from(calib.height));
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for c in corners {
+        for z in [0.0, height] {
+            let (u, v, _) = calib.project([c[0], c[1], z])?;
+            b = [b[0].min(u), b[1].min(v), b[2].max(u), b[3].max(v)];
+        }
+    }
+    let b = [b[0].max(0.0), b[1].max(0.0), b[2].min(w), b[3].min(h)];
+    (b[2] > b[0] && b[3] > b[1]).then_some(b)
+}
+
+/// Deficit regions in one RGB8 frame (`width × height × 3` bytes): connected groups of red
+/// pixels (red exceeds green and blue by 96 levels, with at least two red neighbours) whose
+/// bounding box (at least 8 × 8 pixels) has a red border (at least 60 % of its 2-pixel ring
+/// and half of each side) around a dark interior (mean luminance at most 64, at most 20 %
+/// red). A stop sign's face, a red car or a lit lamp is red *inside*, so it is
+/// not taken; two overlapping deficits whose outlines merge are reported as their union when
+/// the union's border still reads red, and missed otherwise.
+pub fn find_deficits(
+    rgb: &[u8],
+    width: usize,
+    height: usize,
+) -> Result<Vec<DeficitSeen>, PlannerError> {
+    if width == 0 || height == 0 || rgb.len() != width * height * 3 {
+        return Err(PlannerError::Input(format!(
+            "frame of {} bytes, expected {width}x{height} RGB8 ({} bytes)",
+            rgb.len(),
+            width * height * 3
+        )));
+    }
+    let raw: Vec<bool> = rgb
+        .chunks_exact(3)
+        .map(|p| {
+            let (r, g, b) = (i32::from(p[0]), i32::from(p[1]), i32::from(p[2]));
+            r >= 128 && r - g >= 96 && r - b >= 96
+        })
+        .collect();
+    // A red pixel of a line has red neighbours (an outline's has at least three); one with
+    // fewer than two is a speck of noise, which must not join an outline and stretch its box.
+    let red: Vec<bool> = (0..raw.len())
+        .map(|i| {
+            let (x, y) = ((i % width) as i64, (i / width) as i64);
+            raw[i]
+                && (-1i64..=1)
+                    .flat_map(|dy| (-1i64..=1).map(move |dx| (dx, dy)))
+                    .filter(|&(dx, dy)| {
+                        let (nx, ny) = (x + dx, y + dy);
+                        (dx, dy) != (0, 0)
+                            && nx >= 0
+                            && ny >= 0
+                            && nx < width as i64
+                            && ny < height as i64
+                            && raw[ny as usize * width + nx as usize]
+                    })
+                    .count()
+                    >= 2
+        })
+        .collect();
+    // Connected groups of red pixels (8-neighbourhood), by an explicit stack.
+    let mut label = vec![u32::MAX; width * height];
+    let mut found = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..red.len() {
+        if !red[start] || label[start] != u32::MAX {
+            continue;
+        }
+        let id = found.len() as u32;
+        let (mut x0, mut y0, mut x1, mut y1) = (width, height, 0, 0);
+        label[start] = id;
+        stack.push(start);
+        while let Some(i) = stack.pop() {
+            let (x, y) = (i % width, i / width);
+            x0 = x0.min(x);
+            y0 = y0.min(y);
+            x1 = x1.max(x + 1);
+            y1 = y1.max(y + 1);
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx < 0 || ny < 0 || nx >= width as i64 || ny >= height as i64 {
+                        continue;
+                    }
+                    let j = ny as usize * width + nx as usize;
+                    if red[j] && label[j] == u32::MAX {
+                        label[j] = id;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+        found.push((x0, y0, x1, y1));
+    }
+    let mut out = Vec::new();
+    for (x0, y0, x1, y1) in found {
+        // The smallest deficit worth reporting: a 2-pixel ring, then a 1-pixel margin, around
+        // at least 2 × 2 pixels of fill.
+        if x1 - x0 < 8 || y1 - y0 < 8 {
+            continue;
+        }
+        // Each side of the ring must read red (a lamp or a sign face is round: its box's
+        // corners are not red, but its sides are; what tells it apart is its red interior).
+        let side_red = |xs: std::ops::Range<usize>, ys: std::ops::Range<usize>| {
+            let n = xs.len() * ys.len();
+            let r = ys
+                .flat_map(|y| xs.clone().map(move |x| y * width + x))
+                .filter(|&i| red[i])
+                .count();
+            r as f64 / n as f64
+        };
+        let sides = [
+            side_red(x0..x1, y0..y0 + 2),
+            side_red(x0..x1, y1 - 2..y1),
+            side_red(x0..x0 + 2, y0..y1),
+            side_red(x1 - 2..x1, y0..y1),
+        ];
+        if sides.iter().any(|&s| s < 0.5) {
+            continue;
+        }
+        let (mut ring, mut ring_red) = (0usize, 0usize);
+        let (mut inner, mut inner_red, mut inner_lum) = (0usize, 0usize, 0u64);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let i = y * width + x;
+                let on_ring = x < x0 + 2 || x >= x1 - 2 || y < y0 + 2 || y >= y1 - 2;
+                if on_ring {
+                    ring += 1;
+                    ring_red += usize::from(red[i]);
+                } else if x >= x0 + 3 && x < x1 - 3 && y >= y0 + 3 && y < y1 - 3 {
+                    inner += 1;
+                    inner_red += usize::from(red[i]);
+                    let p = &rgb[i * 3..i * 3 + 3];
+                    inner_lum += u64::from(p[0]) + u64::from(p[1]) + u64::from(p[2]);
+                }
+            }
+        }
+        let outline = ring_red as f64 / ring as f64;
+        let fill_lum = inner_lum as f64 / (3 * inner.max(1)) as f64;
+        if outline >= 0.6 && fill_lum <= 64.0 && inner_red * 5 <= inner {
+            out.push(DeficitSeen {
+                x0: x0 as u32,
+                y0: y0 as u32,
+                x1: x1 as u32,
+                y1: y1 as u32,
+                outline,
+                fill_lum,
+            });
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(w: usize, h: usize, bg: [u8; 3]) -> Vec<u8> {
+        bg.iter().copied().cycle().take(w * h * 3).collect()
+    }
+
+    fn paint(
+        rgb: &mut [u8],
+        w: usize,
+        r: (usize, usize, usize, usize),
+        f: impl Fn(usize, usize) -> [u8; 3],
+    ) {
+        for y in r.1..r.3 {
+            for x in r.0..r.2 {
+                rgb[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&f(x, y));
+            }
+        }
+    }
+
+    fn deficit(rgb: &mut [u8], w: usize, r: (usize, usize, usize, usize)) {
+        paint(rgb, w, r, |x, y| {
+            if x < r.0 + 2 || x >= r.2 - 2 || y < r.1 + 2 || y >= r.3 - 2 {
+                [255, 0, 0]
+            } else {
+                [0, 0, 0]
+            }
+        });
+    }
+
+    /// Deterministic noise: a hash of the position, roughly uniform in ±`amp`.
+    fn noisy(rgb: &mut [u8], amp: i32) {
+        for (i, v) in rgb.iter_mut().enumerate() {
+            let h = (i as u64)
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .rotate_left(17);
+            let d = (h % (2 * amp as u64 + 1)) as i32 - amp;
+            *v = (i32::from(*v) + d).clamp(0, 255) as u8;
+        }
+    }
+
+    #[test]
+    fn finds_each_outlined_black_box_and_nothing_red_inside() {
+        let (w, h) = (160, 90);
+        let mut rgb = frame(w, h, [110, 112, 118]);
+        deficit(&mut rgb, w, (10, 10, 40, 50));
+        deficit(&mut rgb, w, (100, 60, 112, 70));
+        // A stop-sign-like red face and a lone red pixel: red inside, not outlines.
+        paint(&mut rgb, w, (60, 20, 80, 40), |_, _| [196, 22, 32]);
+        paint(&mut rgb, w, (130, 10, 131, 11), |_, _| [255, 0, 0]);
+        // A dark patch without an outline.
+        paint(&mut rgb, w, (60, 60, 90, 80), |_, _| [5, 5, 5]);
+        let got = find_deficits(&rgb, w, h).unwrap();
+        let boxes: Vec<_> = got.iter().map(|d| (d.x0, d.y0, d.x1, d.y1)).collect();
+        assert_eq!(boxes, vec![(10, 10, 40, 50), (100, 60, 112, 70)]);
+        assert!(got.iter().all(|d| d.outline == 1.0 && d.fill_lum == 0.0));
+    }
+
+    #[test]
+    fn survives_noise_and_rejects_bad_sizes() {
+        let (w, h) = (120, 80);
+        let mut rgb = frame(w, h, [90, 90, 95]);
+        deficit(&mut rgb, w, (30, 20, 70, 60));
+        noisy(&mut rgb, 60);
+        let got = find_deficits(&rgb, w, h).unwrap();
+        assert_eq!(got.len(), 1, "{got:?}");
+        assert_eq!(
+            (got[0].x0, got[0].y0, got[0].x1, got[0].y1),
+            (30, 20, 70, 60)
+        );
+        assert!(got[0].fill_lum > 0.0 && got[0].fill_lum < 40.0);
+        assert!(find_deficits(&rgb, w, h + 1).is_err());
+        assert!(find_deficits(&[], 0, 0).is_err());
+    }
+
+    #[test]
+    fn an_object_box_stands_on_its_contact() {
+        let calib = CameraCalib::standard(CameraId::FrontWide, 576, 320);
+        let b = image_box(&calib, &[[10.0, -0.9], [10.0, 0.9]], 1.5).unwrap();
+        // Centred, its foot well below the horizon, its top (1.5 m, the camera is 1.6 m up)
+        // just below it...
+        assert!(b[0] < calib.cx && b[2] > calib.cx, "{b:?}");
+        assert!(
+            b[3] > calib.cy + 20.0 && (b[1] - calib.cy).abs() < 5.0,
+            "{b:?}"
+        );
+        // ...and smaller when farther.
+        let far = image_box(&calib, &[[20.0, -0.9], [20.0, 0.9]], 1.5).unwrap();
+        assert!(far[2] - far[0] < b[2] - b[0]);
+        // Behind the camera: not in view.
+        assert!(image_box(&calib, &[[-5.0, -0.9], [-5.0, 0.9]], 1.5).is_none());
+    }
+}
