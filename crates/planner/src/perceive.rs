@@ -239,7 +239,7 @@ impl<'a> Eyes<'a> {
         if need <= 16.0 {
             return view.patch(u, v0, 4, 4);
         }
-        let (_, v_far, _) = view.calib.project([x + reach, y, 0.0])?;
+        let (_, v_far, _) = view.project_any([x + reach, y, 0.0])?;
         let cols = (need / 4.0).clamp(4.0, (lat * view.calib.fx / range).max(4.0));
         let rows = (need / cols).clamp(4.0, (v0 - v_far + 2.0).max(4.0));
         let half = cols / 2.0;
@@ -1090,8 +1090,8 @@ fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bo
     let yc = centre(x);
     let corners = [[x - 0.2, yc + 1.2, 1.2], [x - 0.2, yc - 1.2, 0.55]];
     let (Some(a), Some(b)) = (
-        view.calib.project(corners[0]),
-        view.calib.project(corners[1]),
+        view.project_any(corners[0]),
+        view.project_any(corners[1]),
     ) else {
         return false;
     };
@@ -1313,8 +1313,8 @@ fn transverse_marks(
 /// pixels in the camera that reads distance `x`.
 fn strip_mean(eyes: &Eyes<'_>, x: f64, y0: f64, y1: f64, dep: f64) -> Option<Sample> {
     let view = eyes.view_for([x, 0.5 * (y0 + y1), 0.0])?;
-    let (ua, va, _) = view.calib.project([x, y0, 0.0])?;
-    let (ub, vb, _) = view.calib.project([x, y1, 0.0])?;
+    let (ua, va, _) = view.project_any([x, y0, 0.0])?;
+    let (ub, vb, _) = view.project_any([x, y1, 0.0])?;
     let rows = (view.calib.fy * view.calib.z_m * dep / (x * x)).max(1.0);
     let v = 0.5 * (va + vb);
     let (u0, u1) = (ua.min(ub), ua.max(ub));

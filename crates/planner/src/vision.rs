@@ -32,6 +32,9 @@ pub struct View<'a> {
     pub white: f32,
     /// Undoes the clipping bias of noisy means (`None` on clean frames).
     censor: Option<fogline_monitor::Censoring>,
+    /// The camera's axes (`CameraCalib::axes`), computed once: projection is the inner loop
+    /// of every reading.
+    axes: [[f64; 3]; 3],
 }
 
 thread_local! {
@@ -108,6 +111,7 @@ impl<'a> View<'a> {
             sigma,
             white,
             censor: fogline_monitor::Censoring::new(f64::from(sigma)),
+            axes: calib.axes(),
         }
     }
 
@@ -122,6 +126,7 @@ impl<'a> View<'a> {
             sigma: self.sigma,
             white: self.white,
             censor: self.censor.clone(),
+            axes: self.axes,
         }
     }
 
@@ -213,10 +218,29 @@ impl<'a> View<'a> {
         ]
     }
 
+    /// `CameraCalib::project` (the same arithmetic) with the axes computed once per view:
+    /// `(u, v, range)` of rig-frame point `p`, or `None` behind the camera; the point may
+    /// lie outside the image.
+    #[inline]
+    pub fn project_any(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let c = self.calib;
+        let [f, r, d] = self.axes;
+        let q = [p[0] - c.x_m, p[1] - c.y_m, p[2] - c.z_m];
+        let zc = dot(q, f);
+        if zc <= 0.01 {
+            return None;
+        }
+        let u = c.cx + c.fx * dot(q, r) / zc;
+        let v = c.cy + c.fy * dot(q, d) / zc;
+        Some((u, v, dot(q, q).sqrt()))
+    }
+
     /// Pixel position and range `(u, v, range)` of rig-frame point `p` when it is in the
     /// image.
+    #[inline]
     pub fn project(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
-        self.calib.project(p).filter(|&(u, v, _)| {
+        self.project_any(p).filter(|&(u, v, _)| {
             u >= 0.0 && v >= 0.0 && u < self.width() as f64 && v < self.height() as f64
         })
     }
@@ -227,7 +251,7 @@ impl<'a> View<'a> {
     /// noise asks for within those limits.
     #[inline]
     pub fn around(&self, p: [f64; 3], lat_m: f64, dep_m: f64) -> Option<Sample> {
-        let proj = self.calib.project(p)?;
+        let proj = self.project_any(p)?;
         self.around_at(p, proj, lat_m, dep_m)
     }
 
