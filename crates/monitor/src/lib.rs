@@ -300,7 +300,8 @@ impl Censoring {
     #[inline]
     pub fn true_mean(&self, observed: f32) -> f32 {
         let x = observed.clamp(0.0, 255.0);
-        let i = (x.floor() as usize).min(254);
+        // `x` is non-negative, so truncation is its floor (without a library call).
+        let i = (x as usize).min(254);
         let f = x - i as f32;
         self.table[i] + f * (self.table[i + 1] - self.table[i])
     }

@@ -12,7 +12,7 @@
 
 use crate::vision::{
     LampColour, Refs, Rgb, Sample, View, chroma, gain_of, is_object, is_road, is_sign_red,
-    is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance,
+    is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance, round_px,
 };
 use fogline_types::clip::{CameraId, EgoPose, PlannerInput};
 
@@ -244,10 +244,10 @@ impl<'a> Eyes<'a> {
         let rows = (need / cols).clamp(4.0, (v0 - v_far + 2.0).max(4.0));
         let half = cols / 2.0;
         view.rect_sample(
-            (u - half).round() as isize,
-            (v0 + 2.0 - rows).round() as isize,
-            (u + half).round() as isize,
-            (v0 + 2.0).round() as isize,
+            round_px(u - half),
+            round_px(v0 + 2.0 - rows),
+            round_px(u + half),
+            round_px(v0 + 2.0),
         )
     }
 

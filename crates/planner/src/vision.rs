@@ -193,8 +193,8 @@ impl<'a> View<'a> {
         if !(u >= 0.0 && v >= 0.0 && u < self.width() as f64 && v < self.height() as f64) {
             return None;
         }
-        let x0 = (u - kw as f64 / 2.0).round() as isize;
-        let y0 = (v - kh as f64 / 2.0).round() as isize;
+        let x0 = round_px(u - kw as f64 / 2.0);
+        let y0 = round_px(v - kh as f64 / 2.0);
         self.rect_sample(x0, y0, x0 + kw.max(1) as isize, y0 + kh.max(1) as isize)
     }
 
@@ -276,6 +276,18 @@ impl<'a> View<'a> {
         let kh_max = (dep_m * rows_per_m).max(2.0);
         let (kw, kh) = pool_size(self.sigma, kw_max, kh_max);
         self.patch(u, v, kw, kh)
+    }
+}
+
+/// `x.round() as isize` (half away from zero) without the library call that `f64::round`
+/// becomes on CPUs without SSE4.1's rounding instruction (the baseline x86-64 target): pixel
+/// coordinates are rounded in the inner loop of every reading.
+#[inline]
+pub fn round_px(x: f64) -> isize {
+    if x >= 0.0 {
+        (x + 0.5) as isize
+    } else {
+        (x - 0.5) as isize
     }
 }
 
