@@ -427,7 +427,7 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
     };
     let centre = |x: f64| lane_offset + 0.5 * kappa * x * x;
     let paint = lane.and_then(|l| l.paint_contrast).map(|c| c as f32);
-    let (stop_line, zebra) = transverse_marks(&eyes, &centre, &road, paint);
+    let (stop_line, zebra, zebra_end) = transverse_marks(&eyes, &centre, &road, paint);
     // Ground samples are trusted while the lane model's lateral sag stays within 3 m.
     let x_max = if kappa.abs() > 1e-6 {
         (6.0 / kappa.abs()).sqrt().min(70.0)
@@ -443,7 +443,12 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
     // over farther ground) is painted when that span meets the paint.
     let painted = |x0: f64, x1: f64| {
         stop_line.is_some_and(|s| x0 < s + 1.0 && x1 > s - 1.0)
-            || zebra.is_some_and(|z| x0 < z + 4.0 && x1 > z - 0.5)
+            || zebra.is_some_and(|z| {
+                // Where the stripes were seen to end, when that is beyond the usual 4 m (a
+                // far crossing's start reads early under noise, its end does not).
+                let end = zebra_end.map_or(z + 4.0, |e| e.max(z + 4.0));
+                x0 < end && x1 > z - 0.5
+            })
     };
     let inner = lane_width / 2.0 - 0.4;
     let half = lane_width / 2.0;
@@ -1230,7 +1235,7 @@ fn transverse_marks(
     centre: &dyn Fn(f64) -> f64,
     road: &RoadModel,
     paint: Option<f32>,
-) -> (Option<f64>, Option<f64>) {
+) -> (Option<f64>, Option<f64>, Option<f64>) {
     // The paint's contrast near the car: as measured on the lane markings, else what white
     // paint on asphalt reads in daylight scaled by the exposure.
     let near_contrast = paint.unwrap_or(140.0 * road.gain).max(20.0 * road.gain);
@@ -1277,6 +1282,7 @@ fn transverse_marks(
     }
     let mut stop = None;
     let mut zebra = None;
+    let mut zebra_end = None;
     let mut i = 0;
     while i < profile.len() {
         if profile[i].1 >= 0.7 {
@@ -1300,13 +1306,14 @@ fn transverse_marks(
             }
             if profile[j.min(profile.len() - 1)].0 - start >= 2.0 {
                 zebra = Some(start);
+                zebra_end = Some(profile[j.min(profile.len() - 1)].0);
             }
             i = j.max(i + 1);
             continue;
         }
         i += 1;
     }
-    (stop, zebra)
+    (stop, zebra, zebra_end)
 }
 
 /// The mean over the ground strip from `(x, y0)` to `(x, y1)`, `dep` m deep: one rectangle of
