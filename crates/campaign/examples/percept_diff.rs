@@ -12,7 +12,6 @@
 //! `THREADS=n` (default 2). Prints, per condition and scenario, clean and perturbed agreement
 //! with the expert, the mean ADE before and after, and the flips against the clean decision.
 #![allow(
-    clippy::unwrap_used,
     clippy::print_stdout,
     clippy::print_stderr,
     clippy::too_many_lines,
@@ -27,7 +26,7 @@ use std::collections::BTreeMap;
 static PLAN_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 static PLAN_N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
-fn main() {
+fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let clips: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(300);
     let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(0);
@@ -43,9 +42,10 @@ fn main() {
         mix: ScenarioMix::paper_scaled(clips),
         ..WorldConfig::default()
     };
-    let mut prepared = vec![Perturbation::identity().prepare(0).unwrap()];
+    let mut prepared = vec![Perturbation::identity().prepare(0)?];
     for c in &conds {
-        prepared.push(Perturbation::parse(c).unwrap().prepare(0).unwrap());
+        let parsed = Perturbation::parse(c).map_err(|e| format!("condition {c:?}: {e}"))?;
+        prepared.push(parsed.prepare(0)?);
     }
     let planner = ReferencePlanner::new();
     let n = cfg.mix.total();
@@ -61,14 +61,26 @@ fn main() {
                 s.spawn(move || {
                     let mut out = Vec::new();
                     for i in (t..n).step_by(nt).filter(|i| std::env::var("ONLY").map_or(true, |o| o.split(',').any(|x| x == i.to_string()))) {
-                        let clip = generate_clip(cfg, i).unwrap();
+                        let clip = match generate_clip(cfg, i) {
+                            Ok(c) => c,
+                            Err(e) => {
+                                eprintln!("clip {i}: {e}");
+                                continue;
+                            }
+                        };
                         let key = clip_key(i);
                         let mut clean = None;
                         for (ci, cond) in prepared.iter().enumerate() {
-                            let frames = condition_frames(&clip, key, cond).unwrap();
+                            let Ok(frames) = condition_frames(&clip, key, cond) else {
+                                eprintln!("clip {i}: the condition could not be applied");
+                                continue;
+                            };
                             let input = planner_input(&clip, &frames);
                             let t0 = std::time::Instant::now();
-                            let (p, plan) = planner.plan_with_perception(&input).unwrap();
+                            let Ok((p, plan)) = planner.plan_with_perception(&input) else {
+                                eprintln!("clip {i}: the planner refused its input");
+                                continue;
+                            };
                             PLAN_NS.fetch_add(t0.elapsed().as_nanos() as u64, std::sync::atomic::Ordering::Relaxed);
                             PLAN_N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                             let ade = plan.trajectory.ade(&clip.ground_truth);
@@ -79,7 +91,9 @@ fn main() {
                                 clean = Some((p, plan.decision, ade));
                                 continue;
                             }
-                            let (cp, cd, cade) = clean.as_ref().unwrap();
+                            let Some((cp, cd, cade)) = clean.as_ref() else {
+                                continue;
+                            };
                             let mut what = Vec::new();
                             let lk = |l: &Option<fogline_planner::perceive::LeadSeen>| {
                                 l.map(|l| format!("{:?}@{:.0}", l.kind, l.contact_x))
@@ -131,7 +145,7 @@ fn main() {
                 })
             })
             .collect();
-        hs.into_iter().map(|h| h.join().unwrap()).collect()
+        hs.into_iter().filter_map(|h| h.join().ok()).collect()
     });
     let mut lines: Vec<String> = results.into_iter().flatten().collect();
     lines.sort();
@@ -145,8 +159,8 @@ fn main() {
             let e = agg.entry((f[0].into(), sc.into())).or_default();
             e.0 += 1;
             e.1 += usize::from(f[3] == format!("Some({})", f[5]));
-            e.2 += f[6].parse::<f64>().unwrap();
-            e.3 += f[7].parse::<f64>().unwrap();
+            e.2 += f[6].parse::<f64>().unwrap_or(f64::NAN);
+            e.3 += f[7].parse::<f64>().unwrap_or(f64::NAN);
             e.4 += usize::from(f[4] != f[5]);
             e.5 += usize::from(f[3] == format!("Some({})", f[4]));
         }
@@ -179,4 +193,5 @@ fn main() {
     for ((c, k), n) in &causes {
         println!("cause {c} {k} {n}");
     }
+    Ok(())
 }

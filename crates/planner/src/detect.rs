@@ -16,9 +16,10 @@
 //!         rgb[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&px);
 //!     }
 //! }
-//! let found = find_deficits(&rgb, w, h).unwrap();
+//! let found = find_deficits(&rgb, w, h)?;
 //! assert_eq!(found.len(), 1);
 //! assert_eq!((found[0].x0, found[0].y0, found[0].x1, found[0].y1), (20, 10, 44, 30));
+//! # Ok::<(), fogline_planner::PlannerError>(())
 //! ```
 
 use crate::PlannerError;

@@ -1094,10 +1094,7 @@ fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bo
     let x = contact - REAR_WHEEL_TO_BUMPER;
     let yc = centre(x);
     let corners = [[x - 0.2, yc + 1.2, 1.2], [x - 0.2, yc - 1.2, 0.55]];
-    let (Some(a), Some(b)) = (
-        view.project_any(corners[0]),
-        view.project_any(corners[1]),
-    ) else {
+    let (Some(a), Some(b)) = (view.project_any(corners[0]), view.project_any(corners[1])) else {
         return false;
     };
     let lamp_px = 0.2 * view.calib.fx / (x - view.calib.x_m).max(1.0);

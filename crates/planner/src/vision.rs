@@ -218,22 +218,12 @@ impl<'a> View<'a> {
         ]
     }
 
-    /// `CameraCalib::project` (the same arithmetic) with the axes computed once per view:
+    /// `CameraCalib::project` with the axes computed once per view:
     /// `(u, v, range)` of rig-frame point `p`, or `None` behind the camera; the point may
     /// lie outside the image.
     #[inline]
     pub fn project_any(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
-        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        let c = self.calib;
-        let [f, r, d] = self.axes;
-        let q = [p[0] - c.x_m, p[1] - c.y_m, p[2] - c.z_m];
-        let zc = dot(q, f);
-        if zc <= 0.01 {
-            return None;
-        }
-        let u = c.cx + c.fx * dot(q, r) / zc;
-        let v = c.cy + c.fy * dot(q, d) / zc;
-        Some((u, v, dot(q, q).sqrt()))
+        self.calib.project_with(&self.axes, p)
     }
 
     /// Pixel position and range `(u, v, range)` of rig-frame point `p` when it is in the

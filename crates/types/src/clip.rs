@@ -188,7 +188,15 @@ impl CameraCalib {
     /// Projects a rig-frame point: `(u, v, distance)` with the Euclidean distance from the
     /// camera, or `None` behind the camera (depth along the axis ≤ 1 cm).
     pub fn project(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
-        let [f, r, d] = self.axes();
+        self.project_with(&self.axes(), p)
+    }
+
+    /// [`CameraCalib::project`] with the camera's [`CameraCalib::axes`] computed once by the
+    /// caller (projection is an inner loop of image readers; the axes cost a sine and a
+    /// cosine of the yaw and the pitch).
+    #[inline]
+    pub fn project_with(&self, axes: &[[f64; 3]; 3], p: [f64; 3]) -> Option<(f64, f64, f64)> {
+        let [f, r, d] = *axes;
         let q = [p[0] - self.x_m, p[1] - self.y_m, p[2] - self.z_m];
         let zc = dot(q, f);
         if zc <= 0.01 {
