@@ -8,7 +8,10 @@
 //!
 //! Arguments: clips (paper mix), world seed, conditions. Environment: `VERBOSE=1` lists every
 //! clip whose decision changed with the percepts that changed; `CLEAN=1` lists the clean
-//! clips that disagree with the expert; `ONLY=i,j` runs those clip indices only;
+//! clips that disagree with the expert; `BOXES=1` prints the renderer's non-car boxes and
+//! the scene facts of each clip (what is really there); `SPEED=1` prints, for clips with a
+//! lead, its true speed beside the clean and perturbed estimates and their standard errors;
+//! `ONLY=i,j` runs those clip indices only;
 //! `THREADS=n` (default 2). Prints, per condition and scenario, clean and perturbed agreement
 //! with the expert, the mean ADE before and after, and the flips against the clean decision.
 #![allow(
@@ -88,12 +91,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                                 if std::env::var("CLEAN").is_ok() && clip.scene.decision != Some(plan.decision) {
                                     eprintln!("CLEAN {} {i} {:?} -> {:?} ade {ade:.2} lead {:?} light {:?} sign {:?} end {:?} rb {} zebra {:?} line {:?} lane {:?} leftfree {}", clip.scenario, clip.scene.decision, plan.decision, p.lead.map(|l| (l.kind, l.contact_x as i32, l.right_edge, l.left_edge, l.speed as i32, l.width_m)), p.light, p.stop_sign.map(|x| x as i32), p.road_end, p.right_branch, p.zebra, p.stop_line, p.lane.map(|l| (l.offset, l.width)), p.left_lane_free);
                                 }
+                                if std::env::var("BOXES").is_ok() {
+                                    for cam in &clip.cameras {
+                                        if let Some(f) = cam.frames.last() {
+                                            for b in f.boxes.iter().filter(|b| b.class != "car") {
+                                                eprintln!("BOX {i} {:?} {} x {:.0} y {:.0} w {:.0} h {:.0}", cam.calib.id, b.class, b.x_px, b.y_px, b.width_px, b.height_px);
+                                            }
+                                        }
+                                    }
+                                    eprintln!("FACTS {i} {:?}", clip.scene.facts);
+                                }
                                 clean = Some((p, plan.decision, ade));
                                 continue;
                             }
                             let Some((cp, cd, cade)) = clean.as_ref() else {
                                 continue;
                             };
+                            if std::env::var("SPEED").is_ok()
+                                && let Some(v) = clip.scene.facts.get("lead_speed_mps").and_then(|v| v.as_f64())
+                            {
+                                eprintln!("SPEED {} {i} true {v:.2} clean {:?} noisy {:?}", clip.scenario, cp.lead.map(|l| (l.speed, l.speed_se)), p.lead.map(|l| (l.speed, l.speed_se)));
+                            }
                             let mut what = Vec::new();
                             let lk = |l: &Option<fogline_planner::perceive::LeadSeen>| {
                                 l.map(|l| format!("{:?}@{:.0}", l.kind, l.contact_x))

@@ -450,6 +450,11 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
                 x0 < end && x1 > z - 0.5
             })
     };
+    // A crossing's stripes, where they were seen (a stop line's band is too short to pass
+    // for the end of the road).
+    let on_zebra = |x0: f64, x1: f64| {
+        zebra.is_some_and(|z| x0 < zebra_end.map_or(z + 4.0, |e| e.max(z + 4.0)) && x1 > z - 0.5)
+    };
     let inner = lane_width / 2.0 - 0.4;
     let half = lane_width / 2.0;
     let ego = Span {
@@ -464,39 +469,43 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
     };
     let ego_bins = first_blocked(&eyes, &xs, &centre, ego, &road, &painted);
     let left_bins = first_blocked(&eyes, &xs, &centre, left, &road, &painted);
-    // Noise hides the far edge of a T-junction from the fine bins' small patches; the
-    // static ground pooled over the clip's frames and across half a metre still shows it.
-    // Taken only with asphalt opening to the right before it (what a T-junction is), so
-    // that a vehicle ahead is never mistaken for the end of the road.
-    let road_end = road_end(&ego_bins, &left_bins).or_else(|| {
+    // Noise hides the far edge of a T-junction from the fine bins' small patches; a step in
+    // the colour of the whole road across both lanes, pooled over metres of ground and the
+    // clip's frames, still shows it. Taken only with asphalt opening to the right before it
+    // (what a T-junction is) and no road user before it in the ego lane, whose far side
+    // could make such a step.
+    let bins_end = road_end(&ego_bins, &left_bins);
+    // The nearest road user in the ego lane, when the bins see no end to the road.
+    let lead_any = bins_end
+        .is_none()
+        .then(|| lead_of(input, &eyes, &ego_bins, &centre, &road, speed))
+        .flatten();
+    let road_end = bins_end.or_else(|| {
         (sigma > 6.0)
-            .then(|| road_end_static(&eyes, &xs, &centre, lane_width, &road, &painted))
+            .then(|| road_end_step(&eyes, &centre, lane_width, gain, &on_zebra))
             .flatten()
-            .filter(|&x_end| right_branch(&eyes, &centre, x_end, lane_width, &road))
+            .filter(|&x_end| right_branch(&eyes, &centre, x_end, lane_width, gain))
             .filter(|&x_end| {
-                // A road user in the ego lane at that distance is what blocks it.
-                lead_of(input, &eyes, &ego_bins, &centre, &road, speed)
-                    .is_none_or(|l| l.contact_x > x_end + 3.0)
+                // A road user before it hides the ground behind it from the ego lane: the
+                // step may be its far side. (One at the step may be the edge itself.)
+                lead_any.is_none_or(|l| l.contact_x > x_end - 2.0)
             })
     });
     let right_branch =
-        road_end.is_some_and(|x_end| right_branch(&eyes, &centre, x_end, lane_width, &road));
-    let lead = road_end
-        .is_none()
-        .then(|| lead_of(input, &eyes, &ego_bins, &centre, &road, speed))
-        .flatten()
-        .or_else(|| {
-            // With a road end, only objects clearly nearer than it count.
-            road_end.and_then(|x_end| {
-                let mut bins = ego_bins.clone();
-                for b in bins.iter_mut() {
-                    if *b > x_end - 3.0 {
-                        *b = f64::INFINITY;
-                    }
+        road_end.is_some_and(|x_end| right_branch(&eyes, &centre, x_end, lane_width, gain));
+    let lead = match road_end {
+        None => lead_any,
+        // With a road end, only objects clearly nearer than it count.
+        Some(x_end) => {
+            let mut bins = ego_bins.clone();
+            for b in bins.iter_mut() {
+                if *b > x_end - 3.0 {
+                    *b = f64::INFINITY;
                 }
-                lead_of(input, &eyes, &bins, &centre, &road, speed)
-            })
-        });
+            }
+            lead_of(input, &eyes, &bins, &centre, &road, speed)
+        }
+    };
     let left_dashed = lane.is_some_and(|l| l.left_dashed_white);
     // Beyond the lead, the left lane is hidden behind it: look up to just past the lead.
     let horizon = lead.map_or(60.0, |l| (l.contact_x + 3.0).min(60.0));
@@ -792,45 +801,151 @@ fn not_road(s: Sample, refs: &Refs, painted: bool) -> bool {
     !(is_road(s, refs) || paint_blend)
 }
 
-/// [`road_end`] from coarse bins (three per lane) across the ego lane and the lane to its
-/// left, read through the static ground pooled over the clip's frames
-/// ([`Eyes::ground_static`]): the far edge of a T-junction is static, so four frames and half
-/// a metre across quiet the noise that hides it from the fine bins.
-fn road_end_static(
+/// [`road_end`] on noisy frames, as a step in the ground's colour: where every quarter of
+/// the road across the ego lane and the lane to its left (pooled over the clip's frames
+/// and over metres of ground, [`ground_rect_static`]) changes from what lies just before to
+/// something else that persists beyond. The far edge of a T-junction spans the road; a road
+/// user covers a quarter or two of it.
+fn road_end_step(
     eyes: &Eyes<'_>,
-    xs: &[f64],
     centre: &dyn Fn(f64) -> f64,
     lane_width: f64,
-    road: &RoadModel,
-    painted: &dyn Fn(f64, f64) -> bool,
+    gain: f32,
+    on_zebra: &dyn Fn(f64, f64) -> bool,
 ) -> Option<f64> {
-    // Three bins across each lane (its middle and 0.75 m either side), every other
-    // distance of the fine scan: a far edge spans the road, so a coarse look finds it.
-    let ys = [
-        -0.75,
-        0.0,
-        0.75,
-        lane_width - 0.75,
-        lane_width,
-        lane_width + 0.75,
-    ];
-    let bins: Vec<f64> = ys
-        .iter()
-        .map(|&y| {
-            let mut run = 0;
-            for (i, &x) in xs.iter().enumerate().step_by(2) {
-                let blocked = eyes
-                    .ground_static(x, centre(x) + y, 0.5, 2.0)
-                    .is_some_and(|s| not_road(s, &road.refs(x), painted(x - 1.0, x + 1.0)));
-                run = if blocked { run + 1 } else { 0 };
-                if run == 3 {
-                    return xs[i - 4];
-                }
-            }
-            f64::INFINITY
-        })
+    const SEGMENTS: usize = 4;
+    // Half-metre slices of each segment from X0 on, read once; windows average them.
+    const X0: f64 = 9.0;
+    const SLICE: f64 = 0.5;
+    const SLICES: usize = 131;
+    let (y0, y1) = (-lane_width / 2.0 + 0.3, 1.5 * lane_width - 0.3);
+    let seg_w = (y1 - y0) / SEGMENTS as f64;
+    let floor = 12.0 * gain;
+    // Read on first use: most frames have no step in the first segment, and the others
+    // are then never read.
+    let slices: Vec<Vec<std::cell::OnceCell<Option<Sample>>>> = (0..SEGMENTS)
+        .map(|_| (0..SLICES).map(|_| std::cell::OnceCell::new()).collect())
         .collect();
-    road_end(&bins, &[])
+    let slice = |k: usize, i: usize| {
+        *slices[k][i].get_or_init(|| {
+            let (a, b) = (y0 + k as f64 * seg_w, y0 + (k + 1) as f64 * seg_w);
+            let x = X0 + SLICE * i as f64;
+            let c = centre(x + 0.5 * SLICE);
+            ground_rect_static(eyes, x, x + SLICE, c + a, c + b)
+        })
+    };
+    // The mean of segment `k` over `x0..x1`, when most of its slices were seen.
+    let window = |k: usize, x0: f64, x1: f64| -> Option<Sample> {
+        let i0 = ((x0 - X0) / SLICE) as usize;
+        let i1 = (((x1 - X0) / SLICE) as usize).min(SLICES);
+        if i0 >= i1 {
+            return None;
+        }
+        let seen: Vec<Sample> = (i0..i1).filter_map(|i| slice(k, i)).collect();
+        if seen.is_empty() || seen.len() * 2 < i1 - i0 {
+            return None;
+        }
+        let m = seen.len() as f32;
+        let mut c = [0f32; 3];
+        let mut var = 0f32;
+        for q in &seen {
+            for ch in 0..3 {
+                c[ch] += q.c[ch] / m;
+            }
+            var += q.s * q.s;
+        }
+        Some(Sample {
+            c,
+            s: var.sqrt() / m,
+        })
+    };
+    let differs = |a: Sample, b: Sample| {
+        let (d, n) = step_between(a, b);
+        d > floor.max(6.0 * n)
+    };
+    let mut x = 15.0;
+    while x <= 62.0 {
+        let steps = !on_zebra(x - 6.0, x - 1.0)
+            && (0..SEGMENTS).all(|k| {
+                // What lies before is one stretch of road (no paint, no object), and what
+                // lies beyond differs from it near, farther and farther still.
+                let (Some(b0), Some(b1)) =
+                    (window(k, x - 6.0, x - 3.5), window(k, x - 3.5, x - 1.0))
+                else {
+                    return false;
+                };
+                if differs(b0, b1) {
+                    return false;
+                }
+                let Some(before) = window(k, x - 6.0, x - 1.0) else {
+                    return false;
+                };
+                [(0.5, 2.5), (3.0, 6.0), (7.0, 12.0)]
+                    .iter()
+                    .all(|&(a, b)| window(k, x + a, x + b).is_some_and(|w| differs(w, before)))
+            });
+        if steps {
+            return Some(x);
+        }
+        x += 0.5;
+    }
+    None
+}
+
+/// The mean colour of the ground rectangle `x0..x1` × `y0..y1` (rig frame, m) over the
+/// clip's frames (static ground; ego motion from the history), read through every pixel it
+/// covers in the camera that sees its middle.
+fn ground_rect_static(eyes: &Eyes<'_>, x0: f64, x1: f64, y0: f64, y1: f64) -> Option<Sample> {
+    let (xm, ym) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let view = eyes.view_for([xm, ym, 0.0])?;
+    let past = if view.calib.id == CameraId::FrontTele {
+        &eyes.past_tele
+    } else {
+        &eyes.past_wide
+    };
+    let read = |v: &View<'_>, pose: Option<[f64; 3]>| {
+        let at = |x: f64, y: f64| {
+            let p = pose.map_or([x, y, 0.0], |q| into_pose([x, y, 0.0], q));
+            v.project_any(p)
+        };
+        let (ul, _, _) = at(xm, y1)?;
+        let (ur, _, _) = at(xm, y0)?;
+        let (_, vn, _) = at(x0, ym)?;
+        let (_, vf, _) = at(x1, ym)?;
+        let rows = (vn - vf).max(1.0);
+        v.rect(
+            round_px(ul.min(ur)),
+            round_px(vf),
+            round_px(ul.max(ur)),
+            round_px(vf + rows),
+        )
+        .map(|(c, n)| (c, n as f32, v.sigma))
+    };
+    let mut parts = vec![read(view, None)?];
+    for (_, v, pose) in past {
+        if let Some(r) = read(v, Some(*pose)) {
+            parts.push(r);
+        }
+    }
+    let k = parts.len() as f32;
+    let mut c = [0f32; 3];
+    let mut var = 0f32;
+    for (pc, n, sigma) in &parts {
+        for i in 0..3 {
+            c[i] += pc[i] / k;
+        }
+        var += sigma * sigma / n / (k * k);
+    }
+    Some(Sample { c, s: var.sqrt() })
+}
+
+/// Colour distance between two readings over its noise: `(distance, noise)`.
+fn step_between(a: Sample, b: Sample) -> (f32, f32) {
+    let d = [a.c[0] - b.c[0], a.c[1] - b.c[1], a.c[2] - b.c[2]];
+    (
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt(),
+        (a.s * a.s + b.s * b.s).sqrt(),
+    )
 }
 
 /// The lane a bin scan covers: its centre `shift` m left of the ego lane's, the half-width
@@ -920,28 +1035,32 @@ fn road_end(ego: &[f64], left: &[f64]) -> Option<f64> {
     (near * 10 >= all.len() * 7).then_some(med)
 }
 
-/// Asphalt to the right of the lane, a little before the road end.
+/// Asphalt opening to the right of the lane before the road end: somewhere in the last
+/// two and a half lane widths, two metres of ground 1–4 m right of the lane, pooled over the
+/// clip's frames ([`ground_rect_static`]), have the colour of the lane beside them (a
+/// sidewalk or a verge does not; a road branching off does). The road end is read where the
+/// ground stops being road, which is at the far side of the branch, or of its sidewalk.
 fn right_branch(
     eyes: &Eyes<'_>,
     centre: &dyn Fn(f64) -> f64,
     x_end: f64,
     w: f64,
-    road: &RoadModel,
+    gain: f32,
 ) -> bool {
-    let (mut road_n, mut n) = (0, 0);
-    let mut x = x_end - 2.0 * w;
-    while x < x_end - 1.0 {
-        let refs = road.refs(x);
-        for k in 0..6 {
-            let y = centre(x) - w / 2.0 - 1.5 - 0.5 * k as f64;
-            if let Some(s) = eyes.ground_static(x, y, 0.4, 0.5) {
-                n += 1;
-                road_n += usize::from(is_road(s, &refs));
-            }
+    let mut x = x_end - 2.5 * w;
+    while x + 2.0 <= x_end {
+        let c = centre(x + 1.0);
+        let lane = ground_rect_static(eyes, x, x + 2.0, c - w / 2.0 + 0.3, c + w / 2.0 - 0.3);
+        let right = ground_rect_static(eyes, x, x + 2.0, c - w / 2.0 - 4.0, c - w / 2.0 - 1.0);
+        if lane.zip(right).is_some_and(|(l, r)| {
+            let (d, n) = step_between(l, r);
+            d < (12.0 * gain).max(6.0 * n)
+        }) {
+            return true;
         }
-        x += 0.5;
+        x += 1.0;
     }
-    n > 0 && road_n * 10 >= n * 6
+    false
 }
 
 fn lead_of(
