@@ -841,21 +841,20 @@ fn road_end_step(
         if i0 >= i1 {
             return None;
         }
-        let seen: Vec<Sample> = (i0..i1).filter_map(|i| slice(k, i)).collect();
-        if seen.is_empty() || seen.len() * 2 < i1 - i0 {
-            return None;
-        }
-        let m = seen.len() as f32;
-        let mut c = [0f32; 3];
-        let mut var = 0f32;
-        for q in &seen {
+        let (mut sum, mut var, mut m) = ([0f32; 3], 0f32, 0usize);
+        for q in (i0..i1).filter_map(|i| slice(k, i)) {
             for ch in 0..3 {
-                c[ch] += q.c[ch] / m;
+                sum[ch] += q.c[ch];
             }
             var += q.s * q.s;
+            m += 1;
         }
+        if m == 0 || m * 2 < i1 - i0 {
+            return None;
+        }
+        let m = m as f32;
         Some(Sample {
-            c,
+            c: sum.map(|v| v / m),
             s: var.sqrt() / m,
         })
     };
