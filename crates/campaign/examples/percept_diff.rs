@@ -10,7 +10,8 @@
 //! clip whose decision changed with the percepts that changed; `CLEAN=1` lists the clean
 //! clips that disagree with the expert; `BOXES=1` prints the renderer's non-car boxes and
 //! the scene facts of each clip (what is really there); `SPEED=1` prints, for clips with a
-//! lead, its true speed beside the clean and perturbed estimates and their standard errors;
+//! lead, its true speed beside the clean and perturbed estimates and their standard errors,
+//! the true and perceived gaps, both ADEs and both decisions;
 //! `ONLY=i,j` runs those clip indices only;
 //! `THREADS=n` (default 2). Prints, per condition and scenario, clean and perturbed agreement
 //! with the expert, the mean ADE before and after, and the flips against the clean decision.
@@ -89,7 +90,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             let ade = plan.trajectory.ade(&clip.ground_truth);
                             if ci == 0 {
                                 if std::env::var("CLEAN").is_ok() && clip.scene.decision != Some(plan.decision) {
-                                    eprintln!("CLEAN {} {i} {:?} -> {:?} ade {ade:.2} lead {:?} light {:?} sign {:?} end {:?} rb {} zebra {:?} line {:?} lane {:?} leftfree {}", clip.scenario, clip.scene.decision, plan.decision, p.lead.map(|l| (l.kind, l.contact_x as i32, l.right_edge, l.left_edge, l.speed as i32, l.width_m)), p.light, p.stop_sign.map(|x| x as i32), p.road_end, p.right_branch, p.zebra, p.stop_line, p.lane.map(|l| (l.offset, l.width)), p.left_lane_free);
+                                    eprintln!("CLEAN {} {i} {:?} -> {:?} ade {ade:.2} lead {:?} light {:?} sign {:?} end {:?} rb {} zebra {:?} line {:?} lane {:?} leftfree {}", clip.scenario, clip.scene.decision, plan.decision, p.lead.map(|l| (l.kind, l.contact_x as i32, l.right_edge, l.left_edge, l.speed as i32, l.width_m, (l.lateral_speed * 10.0).round() / 10.0, (l.speed_se * 10.0).round() / 10.0)), p.light, p.stop_sign.map(|x| x as i32), p.road_end, p.right_branch, p.zebra, p.stop_line, p.lane.map(|l| (l.offset, l.width)), p.left_lane_free);
                                 }
                                 if std::env::var("BOXES").is_ok() {
                                     for cam in &clip.cameras {
@@ -110,7 +111,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             if std::env::var("SPEED").is_ok()
                                 && let Some(v) = clip.scene.facts.get("lead_speed_mps").and_then(|v| v.as_f64())
                             {
-                                eprintln!("SPEED {} {i} true {v:.2} clean {:?} noisy {:?}", clip.scenario, cp.lead.map(|l| (l.speed, l.speed_se)), p.lead.map(|l| (l.speed, l.speed_se)));
+                                let g = clip.scene.facts.get("lead_gap_m").and_then(|v| v.as_f64()).unwrap_or(f64::NAN);
+                                eprintln!("SPEED {} {i} true {v:.2} clean {:?} noisy {:?} gap {g:.2} {:?} {:?} ade {cade:.2} {ade:.2} dec {cd:?} {:?}", clip.scenario, cp.lead.map(|l| (l.speed, l.speed_se)), p.lead.map(|l| (l.speed, l.speed_se)), cp.lead.map(|l| l.gap), p.lead.map(|l| l.gap), plan.decision);
                             }
                             let mut what = Vec::new();
                             let lk = |l: &Option<fogline_planner::perceive::LeadSeen>| {

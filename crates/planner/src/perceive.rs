@@ -11,8 +11,8 @@
 //! distance ([`RoadModel`]) and the frame's white level.
 
 use crate::vision::{
-    LampColour, Refs, Rgb, Sample, View, chroma, gain_of, is_object, is_road, is_sign_red,
-    is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance, round_px,
+    LampColour, Refs, Rgb, Sample, Smoothed, View, chroma, gain_of, is_object, is_road,
+    is_sign_red, is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance, round_px,
 };
 use fogline_types::clip::{CameraId, EgoPose, PlannerInput};
 
@@ -48,6 +48,9 @@ pub struct LeadSeen {
     /// Standard error of `speed`, m/s (from the scatter of the track about its line; 0 when
     /// the speed is the ego's own, for want of a track).
     pub speed_se: f64,
+    /// Speed across the lane, m/s, left positive (from the same registration as `speed`;
+    /// 0 without a track): a road user crossing moves across, a vehicle ahead along.
+    pub lateral_speed: f64,
     /// Brake lamps lit.
     pub braking: bool,
     /// Vehicle or person.
@@ -146,6 +149,9 @@ const BIN: f64 = 0.1;
 const HALF_LANE_BINS: i32 = 17;
 /// From this distance on, ground points are read from the tele camera.
 const TELE_FROM_M: f64 = 13.0;
+/// Speed across the lane from which a road user on a crossing is crossing it, m/s (a walker
+/// crosses at 1–1.5 m/s).
+const CROSSING_MPS: f64 = 0.8;
 
 struct Eyes<'a> {
     wide: Option<View<'a>>,
@@ -478,7 +484,7 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
     // The nearest road user in the ego lane, when the bins see no end to the road.
     let lead_any = bins_end
         .is_none()
-        .then(|| lead_of(input, &eyes, &ego_bins, &centre, &road, speed))
+        .then(|| lead_of(&eyes, &ego_bins, &centre, &road, speed))
         .flatten();
     let road_end = bins_end.or_else(|| {
         (sigma > 6.0)
@@ -503,7 +509,7 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
                     *b = f64::INFINITY;
                 }
             }
-            lead_of(input, &eyes, &bins, &centre, &road, speed)
+            lead_of(&eyes, &bins, &centre, &road, speed)
         }
     };
     let left_dashed = lane.is_some_and(|l| l.left_dashed_white);
@@ -516,11 +522,13 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
             .filter(|&(i, &x)| x <= horizon && supported(&left_bins, i))
             .count()
             == 0;
-    // Anything nearly stationary standing on a crossing is a road user crossing there.
+    // Its motion, tracked over the frames (for the lead only: the detector runs more often).
+    let lead = lead.map(|l| with_motion(input, &eyes, &centre, speed, l));
+    // Anything on a crossing that stands (along the lane, within its speed's uncertainty)
+    // or moves across the lane is a road user crossing there.
     let lead = lead.map(|mut l| {
-        // Stationary within its speed's uncertainty (noisy frames jitter the track).
         if zebra.is_some_and(|z| l.contact_x > z - 1.0 && l.contact_x < z + 4.0)
-            && l.speed - 2.0 * l.speed_se < 2.0
+            && (l.speed - 2.0 * l.speed_se < 2.0 || l.lateral_speed.abs() >= CROSSING_MPS)
         {
             l.kind = ObjectKind::Person;
         }
@@ -531,7 +539,8 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
     let left_object = left_object
         .then(|| {
             let left_centre = |x: f64| centre(x) + lane_width;
-            lead_of(input, &eyes, &left_bins, &left_centre, &road, speed)
+            lead_of(&eyes, &left_bins, &left_centre, &road, speed)
+                .map(|l| with_motion(input, &eyes, &left_centre, speed, l))
         })
         .flatten();
     Perception {
@@ -1063,7 +1072,6 @@ fn right_branch(
 }
 
 fn lead_of(
-    input: &PlannerInput<'_>,
     eyes: &Eyes<'_>,
     bins: &[f64],
     centre: &dyn Fn(f64) -> f64,
@@ -1179,19 +1187,20 @@ fn lead_of(
         })
     };
     let braking = brake_lamps(eyes, contact, centre);
-    let (speed, speed_se, track) = lead_speed(input, eyes, centre, road, contact, ego_speed, &obj);
+    let motion = Motion::untracked(ego_speed, contact);
     Some(LeadSeen {
         contact_x: contact,
         gap: contact - REAR_WHEEL_TO_BUMPER - fogline_types::motion::EGO_FRONT_M,
-        speed,
-        speed_se,
+        speed: motion.speed,
+        speed_se: motion.speed_se,
+        lateral_speed: motion.lateral_speed,
         braking,
         kind,
         width_m,
         right_edge,
         left_edge,
         confidence,
-        track,
+        track: motion.track,
     })
 }
 
@@ -1238,107 +1247,301 @@ fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bo
     n >= 2.0
 }
 
-/// Lead speed from the contact distance in the four frames (least squares over time), in the
-/// rig frame at `t0` using the ego history for the earlier frames.
-fn lead_speed(
+/// At most this many template samples on a lead's face (about one per pixel up close, sparser
+/// on a large face).
+const MAX_FACE_SAMPLES: f64 = 500.0;
+
+/// A lead's motion, by registering its rear face between frames as a tracker does. The face
+/// at `t0` (a vertical plane at its bumper, across the width the bins found and up to 1.5 m,
+/// box-filtered against the noise and sampled about every other pixel) is the template. In
+/// each earlier frame, the face's position then — along the lane and across it — is the one
+/// whose image matches the template best: a coarse grid over both, then line searches along,
+/// across and along again, each refined by a parabola fitted to the costs around its least.
+/// Every pixel of the face votes, so noise that moves one edge by a pixel, or a speck that a
+/// contact scan would stop at, barely moves the match; and a road user crossing the lane is
+/// followed across it instead of being lost. The speeds are the least-squares slopes of the
+/// positions over time in the rig frame at `t0` (ego motion removed through the history's
+/// poses); the track holds the contacts.
+fn lead_motion(
     input: &PlannerInput<'_>,
     eyes: &Eyes<'_>,
     centre: &dyn Fn(f64) -> f64,
-    road: &RoadModel,
     contact0: f64,
     ego_speed: f64,
-    obj: &[(f64, f64)],
-) -> (f64, f64, [Option<f64>; 4]) {
-    let bins: Vec<f64> = obj.iter().map(|p| p.0).collect();
-    let hist = input.ego_history;
-    let mut ts = Vec::new();
-    let mut xs = Vec::new();
-    let mut track = [None; 4];
-    // Only the camera that sees the lead is needed in the earlier frames.
-    let id = if contact0 >= TELE_FROM_M && eyes.tele.is_some() {
-        CameraId::FrontTele
-    } else {
-        CameraId::FrontWide
+    (right, left): (f64, f64),
+) -> Motion {
+    let mut track = [Some(contact0), None, None, None];
+    let untracked = |track| Motion {
+        track,
+        ..Motion::untracked(ego_speed, contact0)
     };
-    for back in 0..4 {
-        let older;
-        let view = if back == 0 {
-            if id == CameraId::FrontTele {
-                eyes.tele.as_ref()
-            } else {
-                eyes.wide.as_ref()
+    let tele = contact0 >= TELE_FROM_M && eyes.tele.is_some();
+    let (latest, past) = if tele {
+        (eyes.tele.as_ref(), &eyes.past_tele)
+    } else {
+        (eyes.wide.as_ref(), &eyes.past_wide)
+    };
+    let Some(view0) = latest else {
+        return untracked(track);
+    };
+    let face = contact0 - REAR_WHEEL_TO_BUMPER;
+    let (y0, y1, z0, z1) = (right - 0.15, left + 0.15, 0.05, 1.5);
+    // Noise is filtered away before matching (a k × k box takes σ to σ/k); samples then
+    // need be no denser than half the box.
+    let k = ((view0.sigma / 6.0).ceil() as usize).clamp(3, 7) | 1;
+    let px = (face - view0.calib.x_m).max(1.0) / view0.calib.fx;
+    let step =
+        (px * (k as f64 / 2.0).max(1.0)).max(((y1 - y0) * (z1 - z0) / MAX_FACE_SAMPLES).sqrt());
+    // The face's corners at distance `x` as seen from `pose`, as a pixel rectangle with a
+    // margin for the filter.
+    let corners = |view: &View<'_>, xs: &[f64], pad: f64, pose: [f64; 3]| {
+        let (mut u0, mut v0, mut u1, mut v1) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for &x in xs {
+            let yc = centre(x);
+            for (y, z) in [
+                (y0 - pad, z0),
+                (y0 - pad, z1),
+                (y1 + pad, z0),
+                (y1 + pad, z1),
+            ] {
+                let (u, v, _) = view.project_any(into_pose([x, yc + y, z], pose))?;
+                (u0, v0, u1, v1) = (u0.min(u), v0.min(v), u1.max(u), v1.max(v));
             }
-        } else {
-            // Reuse the earlier frame when the lane pooling already read it.
-            let past = if id == CameraId::FrontTele {
-                &eyes.past_tele
-            } else {
-                &eyes.past_wide
-            };
-            match past.iter().find(|p| p.0 == back) {
-                Some(p) => Some(&p.1),
-                None => {
-                    let latest = if id == CameraId::FrontTele {
-                        eyes.tele.as_ref()
-                    } else {
-                        eyes.wide.as_ref()
-                    };
-                    older = earlier(input, latest, back);
-                    older.as_ref()
+        }
+        let m = k as f64 + 2.0;
+        Some((u0 - m, v0 - m, u1 + m, v1 + m))
+    };
+    let Some(now) = corners(view0, &[face], 0.0, [0.0; 3]).and_then(|r| Smoothed::new(view0, r, k))
+    else {
+        return untracked(track);
+    };
+    // The template: (lateral offset from the lane centre, height, colour).
+    let yc = centre(face);
+    let mut template: Vec<(f64, f64, Rgb)> = Vec::new();
+    let mut z = z0;
+    while z <= z1 {
+        let mut y = y0;
+        while y <= y1 {
+            if let Some((u, v, _)) = view0.project([face, yc + y, z])
+                && let Some(c) = now.bilinear(u, v)
+            {
+                template.push((y, z, c));
+            }
+            y += step;
+        }
+        z += step;
+    }
+    if template.len() < 30 {
+        return untracked(track);
+    }
+    let mut ts = vec![0.0];
+    let mut xs = vec![face];
+    let mut ys = vec![0.0];
+    let (mut v_hat, mut lat_hat) = (ego_speed, 0.0);
+    for back in 1..4 {
+        let t = -0.1 * back as f64;
+        let pose = pose_at(input.ego_history, t).unwrap_or([ego_speed * t, 0.0, 0.0]);
+        let owned;
+        let view = match past.iter().find(|p| p.0 == back) {
+            Some(p) => &p.1,
+            None => {
+                owned = earlier(input, Some(view0), back);
+                match owned.as_ref() {
+                    Some(v) => v,
+                    None => continue,
                 }
             }
         };
-        let Some(view) = view else { continue };
-        // Ego pose at that frame (0.1 s per frame back).
-        let t = -0.1 * back as f64;
-        let ego_x = hist.iter().rev().nth(back).map_or(ego_speed * t, |p| p.x_m);
-        let lo = contact0 - ego_x - 8.0;
-        let hi = contact0 - ego_x + 8.0;
-        let mut best = f64::INFINITY;
-        for &y in &bins {
-            let mut prev = false;
-            let mut x = lo.max(4.5);
-            while x <= hi {
-                let p = [x, centre(x + ego_x) + y, 0.0];
-                let refs = road.refs(x + ego_x);
-                let blocked = view.around(p, 0.3, 0.4).is_some_and(|s| !is_road(s, &refs));
-                if blocked && prev {
-                    best = best.min(x - 0.1);
-                    break;
+        // The first earlier frame allows any speed within 15 m/s of the ego's and a road
+        // user crossing at up to 6 m/s; later ones search near the motion found so far.
+        let (x_prior, y_prior) = (face + v_hat * t, lat_hat * t);
+        let (x_half, y_half) = if back == 1 { (1.5, 0.6) } else { (0.8, 0.4) };
+        let reach = [x_prior - x_half - 0.3, x_prior + x_half + 0.3];
+        let Some(then) = corners(view, &reach, y_prior.abs() + y_half + 0.1, pose)
+            .and_then(|r| Smoothed::new(view, r, k))
+        else {
+            continue;
+        };
+        // Mean squared colour difference with the face at `x`, `dy` beside where it was
+        // (following the lane); `None` when too few samples are in the frame.
+        let cost = |x: f64, dy: f64, stride: usize| -> Option<f64> {
+            let plane = view.plane(x, centre(x) + dy, pose);
+            let (mut sum, mut n) = (0.0f64, 0usize);
+            for &(y, z, c) in template.iter().step_by(stride) {
+                if let Some((u, v)) = plane.uv(y, z)
+                    && let Some(d) = then.bilinear(u, v)
+                {
+                    let e = (d[0] - c[0]).powi(2) + (d[1] - c[1]).powi(2) + (d[2] - c[2]).powi(2);
+                    sum += f64::from(e);
+                    n += 1;
                 }
-                prev = blocked;
-                x += 0.1;
+            }
+            (n * stride * 10 >= template.len() * 7).then(|| sum / n as f64)
+        };
+        // A coarse grid over both (on every third sample), then along the lane, across it
+        // and along again from its best cell.
+        let mut cell = None;
+        let (nx, ny) = ((x_half / 0.2).round() as i32, (y_half / 0.1).round() as i32);
+        for i in -nx..=nx {
+            for j in -ny..=ny {
+                let (x, y) = (x_prior + 0.2 * f64::from(i), y_prior + 0.1 * f64::from(j));
+                if let Some(c) = cost(x, y, 3)
+                    && cell.is_none_or(|(_, _, b)| c < b)
+                {
+                    cell = Some((x, y, c));
+                }
             }
         }
-        if best.is_finite() {
-            ts.push(t);
-            xs.push(best + ego_x);
-            track[back] = Some(best + ego_x);
+        let Some((x, dy, _)) = cell else { continue };
+        let Some(x) = best_match(&|x| cost(x, dy, 1), x, 0.4, 0.1) else {
+            continue;
+        };
+        let dy = best_match(&|y| cost(x, y, 1), dy, 0.2, 0.05).unwrap_or(dy);
+        let x = best_match(&|x| cost(x, dy, 1), x, 0.2, 0.05).unwrap_or(x);
+        ts.push(t);
+        xs.push(x);
+        ys.push(dy);
+        track[back] = Some(x + REAR_WHEEL_TO_BUMPER);
+        if let (Some((v, _)), Some((l, _))) = (slope(&ts, &xs), slope(&ts, &ys)) {
+            (v_hat, lat_hat) = (v, l);
         }
     }
-    if ts.len() < 3 {
-        return (ego_speed, 0.0, track);
+    match (slope(&ts, &xs), slope(&ts, &ys)) {
+        (Some((v, se)), Some((lateral, _))) => Motion {
+            speed: v.max(0.0),
+            speed_se: se,
+            lateral_speed: lateral,
+            track,
+        },
+        _ => untracked(track),
+    }
+}
+
+/// A lead's motion from its track (see [`lead_motion`]).
+struct Motion {
+    speed: f64,
+    speed_se: f64,
+    lateral_speed: f64,
+    track: [Option<f64>; 4],
+}
+
+impl Motion {
+    /// No track: the ego's own speed, with no uncertainty claimed.
+    fn untracked(ego_speed: f64, contact: f64) -> Self {
+        Self {
+            speed: ego_speed,
+            speed_se: 0.0,
+            lateral_speed: 0.0,
+            track: [Some(contact), None, None, None],
+        }
+    }
+}
+
+/// `lead` with its motion tracked over the clip's frames.
+fn with_motion(
+    input: &PlannerInput<'_>,
+    eyes: &Eyes<'_>,
+    centre: &dyn Fn(f64) -> f64,
+    ego_speed: f64,
+    lead: LeadSeen,
+) -> LeadSeen {
+    let m = lead_motion(
+        input,
+        eyes,
+        centre,
+        lead.contact_x,
+        ego_speed,
+        (lead.right_edge, lead.left_edge),
+    );
+    LeadSeen {
+        speed: m.speed,
+        speed_se: m.speed_se,
+        lateral_speed: m.lateral_speed,
+        track: m.track,
+        ..lead
+    }
+}
+
+/// The position within `centre ± half` (grid `step`) where `cost` is least, refined by a
+/// parabola fitted to the costs of the seven grid points around it; `None` when the least
+/// cost lies on the edge of the range (the match is outside it) or cannot be read.
+fn best_match(cost: &dyn Fn(f64) -> Option<f64>, centre: f64, half: f64, step: f64) -> Option<f64> {
+    let n = (half / step).round() as i32;
+    let at = |i: i32| centre + f64::from(i) * step;
+    let costs: Vec<f64> = (-n..=n)
+        .map(|i| cost(at(i)).unwrap_or(f64::INFINITY))
+        .collect();
+    let (i, c) = costs.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
+    if !c.is_finite() || i == 0 || i + 1 == costs.len() {
+        return None;
+    }
+    // Least-squares parabola c = a·d² + b·d + e over the window, d in grid steps from i.
+    let (lo, hi) = (i.saturating_sub(3), (i + 3).min(costs.len() - 1));
+    let (mut s, mut sd, mut sd2, mut sd3, mut sd4) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut sc, mut sdc, mut sd2c) = (0.0, 0.0, 0.0);
+    for (j, &cj) in costs.iter().enumerate().take(hi + 1).skip(lo) {
+        if !cj.is_finite() {
+            continue;
+        }
+        let d = j as f64 - i as f64;
+        s += 1.0;
+        sd += d;
+        sd2 += d * d;
+        sd3 += d * d * d;
+        sd4 += d * d * d * d;
+        sc += cj;
+        sdc += d * cj;
+        sd2c += d * d * cj;
+    }
+    // Normal equations of the 3 × 3 system, by Cramer's rule.
+    let det3 = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let m = [[sd4, sd3, sd2], [sd3, sd2, sd], [sd2, sd, s]];
+    let det = det3(m);
+    let off = if s >= 3.0 && det.abs() > 1e-9 {
+        let a = det3([[sd2c, sd3, sd2], [sdc, sd2, sd], [sc, sd, s]]) / det;
+        let b = det3([[sd4, sd2c, sd2], [sd3, sdc, sd], [sd2, sc, s]]) / det;
+        if a > 0.0 {
+            (-b / (2.0 * a)).clamp(-1.0, 1.0)
+        } else {
+            0.0
+        }
+    } else {
+        0.0
+    };
+    Some(at(i as i32 - n) + off * step)
+}
+
+/// Least-squares slope of `xs` over `ts` and its standard error (at least that of a 2 cm
+/// scatter); `None` for fewer than two points.
+fn slope(ts: &[f64], xs: &[f64]) -> Option<(f64, f64)> {
+    if ts.len() < 2 {
+        return None;
     }
     let n = ts.len() as f64;
     let (mt, mx) = (ts.iter().sum::<f64>() / n, xs.iter().sum::<f64>() / n);
     let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (t, x) in ts.iter().zip(&xs) {
+    for (t, x) in ts.iter().zip(xs) {
         sxy += (t - mt) * (x - mx);
         sxx += (t - mt) * (t - mt);
     }
     let v = sxy / sxx.max(1e-9);
-    if !v.is_finite() {
-        return (ego_speed, 0.0, track);
-    }
-    // The slope's standard error from the residuals (at least the 0.1 m step of the scan).
     let ssr: f64 = ts
         .iter()
-        .zip(&xs)
+        .zip(xs)
         .map(|(t, x)| (x - mx - v * (t - mt)).powi(2))
         .sum();
-    let var = (ssr / (n - 2.0).max(1.0)).max(0.05f64.powi(2));
+    let var = (ssr / (n - 2.0).max(1.0)).max(0.02f64.powi(2));
     let se = (var / sxx.max(1e-9)).sqrt();
-    (v.max(0.0), se, track)
+    (v.is_finite() && se.is_finite()).then_some((v, se))
 }
 
 /// Stop line (a solid white band across the lane) and zebra (half-covered bands over ≥ 2 m)

@@ -226,6 +226,30 @@ impl<'a> View<'a> {
         self.calib.project_with(&self.axes, p)
     }
 
+    /// The projection of points `[x, y0 + y, z]` on the rig-frame plane at distance `x`
+    /// (lateral offset `y` from `y0`, height `z`) as seen from a rig at pose `[x, y, yaw]`
+    /// in that frame: coefficients that take `(y, z)` to pixels with three multiply-adds
+    /// and one division each ([`PlaneProjector::uv`]), for matching many samples of a face.
+    pub fn plane(&self, x: f64, y0: f64, pose: [f64; 3]) -> PlaneProjector {
+        let (s, c) = pose[2].sin_cos();
+        let (dx, dy) = (x - pose[0], y0 - pose[1]);
+        let base = [
+            c * dx + s * dy - self.calib.x_m,
+            -s * dx + c * dy - self.calib.y_m,
+            -self.calib.z_m,
+        ];
+        let unit_y = [s, c, 0.0];
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let row = |axis: [f64; 3]| [dot(base, axis), dot(unit_y, axis), axis[2]];
+        let [f, r, d] = self.axes;
+        PlaneProjector {
+            depth: row(f),
+            across: row(r).map(|a| a * self.calib.fx),
+            down: row(d).map(|a| a * self.calib.fy),
+            centre: (self.calib.cx, self.calib.cy),
+        }
+    }
+
     /// Pixel position and range `(u, v, range)` of rig-frame point `p` when it is in the
     /// image.
     #[inline]
@@ -434,4 +458,146 @@ pub fn is_sign_red(x: Sample, gain: f32) -> bool {
     let [r, g, b] = x.c;
     let m = 2.5 * x.s * (1.0f32 + 1.8 * 1.8).sqrt();
     r > 45.0 * gain + 2.5 * x.s && r - 1.8 * g.max(b) > m && r > 2.0 * g.max(b)
+}
+
+/// A box-filtered reading of part of a frame, between pixel centres: what registration
+/// compares. Each pixel reads as the mean of the `k × k` pixels around it (clamped to the
+/// frame), which divides the noise by `k` and turns a hard edge into a ramp `k` pixels wide,
+/// whose position a bilinear read follows to a fraction of a pixel. Pixels are filtered on
+/// first use and kept: a face's samples touch a small part of the rectangle around it.
+pub struct Smoothed<'v, 'a> {
+    view: &'v View<'a>,
+    k: usize,
+    x0: usize,
+    y0: usize,
+    w: usize,
+    h: usize,
+    /// Filtered pixels, NaN until first read.
+    px: Vec<std::cell::Cell<Rgb>>,
+}
+
+thread_local! {
+    /// Buffers of [`Smoothed`] readings, reused per thread (a fresh one per face read would
+    /// be faulted in page by page).
+    static SMOOTHED_BUFFERS: std::cell::RefCell<Vec<Vec<std::cell::Cell<Rgb>>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl Drop for Smoothed<'_, '_> {
+    fn drop(&mut self) {
+        let buf = std::mem::take(&mut self.px);
+        SMOOTHED_BUFFERS.with(|b| {
+            let mut b = b.borrow_mut();
+            if b.len() < 4 {
+                b.push(buf);
+            }
+        });
+    }
+}
+
+impl<'v, 'a> Smoothed<'v, 'a> {
+    /// The pixels of `view` within `[u0, u1) × [v0, v1)` (clamped to the frame), filtered
+    /// with a `k × k` box; `None` when the rectangle misses the frame.
+    pub fn new(
+        view: &'v View<'a>,
+        (u0, v0, u1, v1): (f64, f64, f64, f64),
+        k: usize,
+    ) -> Option<Self> {
+        let (fw, fh) = (view.width(), view.height());
+        let clamp = |a: f64, hi: usize| (a as isize).clamp(0, hi as isize) as usize;
+        let (x0, y0) = (clamp(u0.floor(), fw), clamp(v0.floor(), fh));
+        let (x1, y1) = (clamp(u1.ceil(), fw), clamp(v1.ceil(), fh));
+        if x1 <= x0 + 1 || y1 <= y0 + 1 {
+            return None;
+        }
+        let (w, h) = (x1 - x0, y1 - y0);
+        let mut px = SMOOTHED_BUFFERS
+            .with(|b| b.borrow_mut().pop())
+            .unwrap_or_default();
+        px.clear();
+        px.resize(w * h, std::cell::Cell::new([f32::NAN; 3]));
+        Some(Self {
+            view,
+            k: k.max(1),
+            x0,
+            y0,
+            w,
+            h,
+            px,
+        })
+    }
+
+    /// The filtered pixel at `(x, y)` of the rectangle.
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> Rgb {
+        let cell = &self.px[y * self.w + x];
+        let known = cell.get();
+        if !known[0].is_nan() {
+            return known;
+        }
+        let (fw, fh) = (self.view.width(), self.view.height());
+        let r = self.k / 2;
+        let (cx, cy) = (self.x0 + x, self.y0 + y);
+        let (a, b) = (cx.saturating_sub(r), (cx + r + 1).min(fw));
+        let (c, d) = (cy.saturating_sub(r), (cy + r + 1).min(fh));
+        let mut acc = [0u32; 3];
+        for yy in c..d {
+            for p in self.view.rgb[(yy * fw + a) * 3..(yy * fw + b) * 3].chunks_exact(3) {
+                acc[0] += u32::from(p[0]);
+                acc[1] += u32::from(p[1]);
+                acc[2] += u32::from(p[2]);
+            }
+        }
+        let n = ((b - a) * (d - c)) as f32;
+        let c = [acc[0] as f32 / n, acc[1] as f32 / n, acc[2] as f32 / n];
+        cell.set(c);
+        c
+    }
+
+    /// The filtered colour at continuous frame position `(u, v)` (pixel `i`'s centre at
+    /// `i + 0.5`), interpolated between the four nearest pixels; `None` outside the
+    /// rectangle.
+    #[inline]
+    pub fn bilinear(&self, u: f64, v: f64) -> Option<Rgb> {
+        let (x, y) = (u - 0.5 - self.x0 as f64, v - 0.5 - self.y0 as f64);
+        if !(x >= 0.0 && y >= 0.0 && x < (self.w - 1) as f64 && y < (self.h - 1) as f64) {
+            return None;
+        }
+        let (xi, yi) = (x as usize, y as usize);
+        let (fx, fy) = ((x - xi as f64) as f32, (y - yi as f64) as f32);
+        let (a, b) = (self.at(xi, yi), self.at(xi + 1, yi));
+        let (c, d) = (self.at(xi, yi + 1), self.at(xi + 1, yi + 1));
+        let mut out = [0f32; 3];
+        for (ch, o) in out.iter_mut().enumerate() {
+            let top = a[ch] + (b[ch] - a[ch]) * fx;
+            let bottom = c[ch] + (d[ch] - c[ch]) * fx;
+            *o = top + (bottom - top) * fy;
+        }
+        Some(out)
+    }
+}
+
+/// A plane's projection into one camera (see [`View::plane`]).
+#[derive(Debug, Clone, Copy)]
+pub struct PlaneProjector {
+    depth: [f64; 3],
+    across: [f64; 3],
+    down: [f64; 3],
+    centre: (f64, f64),
+}
+
+impl PlaneProjector {
+    /// Pixel position `(u, v)` of the plane's point at lateral offset `y` and height `z`, or
+    /// `None` behind the camera.
+    #[inline]
+    pub fn uv(&self, y: f64, z: f64) -> Option<(f64, f64)> {
+        let depth = self.depth[0] + y * self.depth[1] + z * self.depth[2];
+        if depth <= 0.01 {
+            return None;
+        }
+        let inv = 1.0 / depth;
+        Some((
+            self.centre.0 + (self.across[0] + y * self.across[1] + z * self.across[2]) * inv,
+            self.centre.1 + (self.down[0] + y * self.down[1] + z * self.down[2]) * inv,
+        ))
+    }
 }
