@@ -527,13 +527,21 @@ impl<'v, 'a> Smoothed<'v, 'a> {
     }
 
     /// The filtered pixel at `(x, y)` of the rectangle.
-    #[inline]
+    #[inline(always)]
     fn at(&self, x: usize, y: usize) -> Rgb {
         let cell = &self.px[y * self.w + x];
         let known = cell.get();
-        if !known[0].is_nan() {
-            return known;
+        if known[0].is_nan() {
+            self.filter(cell, x, y)
+        } else {
+            known
         }
+    }
+
+    /// Filters pixel `(x, y)` of the rectangle into `cell` (its first read).
+    #[cold]
+    #[inline(never)]
+    fn filter(&self, cell: &std::cell::Cell<Rgb>, x: usize, y: usize) -> Rgb {
         let (fw, fh) = (self.view.width(), self.view.height());
         let r = self.k / 2;
         let (cx, cy) = (self.x0 + x, self.y0 + y);
@@ -548,9 +556,9 @@ impl<'v, 'a> Smoothed<'v, 'a> {
             }
         }
         let n = ((b - a) * (d - c)) as f32;
-        let c = [acc[0] as f32 / n, acc[1] as f32 / n, acc[2] as f32 / n];
-        cell.set(c);
-        c
+        let v = [acc[0] as f32 / n, acc[1] as f32 / n, acc[2] as f32 / n];
+        cell.set(v);
+        v
     }
 
     /// The filtered colour at continuous frame position `(u, v)` (pixel `i`'s centre at
