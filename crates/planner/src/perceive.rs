@@ -523,7 +523,7 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
             .count()
             == 0;
     // Its motion, tracked over the frames (for the lead only: the detector runs more often).
-    let lead = lead.map(|l| with_motion(input, &eyes, &centre, speed, l));
+    let lead = lead.map(|l| lead_motion(input, &eyes, &centre, speed, l));
     // Anything on a crossing that stands (along the lane, within its speed's uncertainty)
     // or moves across the lane is a road user crossing there.
     let lead = lead.map(|mut l| {
@@ -540,7 +540,7 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
         .then(|| {
             let left_centre = |x: f64| centre(x) + lane_width;
             lead_of(&eyes, &left_bins, &left_centre, &road, speed)
-                .map(|l| with_motion(input, &eyes, &left_centre, speed, l))
+                .map(|l| lead_motion(input, &eyes, &left_centre, speed, l))
         })
         .flatten();
     Perception {
@@ -1187,20 +1187,20 @@ fn lead_of(
         })
     };
     let braking = brake_lamps(eyes, contact, centre);
-    let motion = Motion::untracked(ego_speed, contact);
+    // Untracked until `lead_motion`: the ego's own speed, with no uncertainty claimed.
     Some(LeadSeen {
         contact_x: contact,
         gap: contact - REAR_WHEEL_TO_BUMPER - fogline_types::motion::EGO_FRONT_M,
-        speed: motion.speed,
-        speed_se: motion.speed_se,
-        lateral_speed: motion.lateral_speed,
+        speed: ego_speed,
+        speed_se: 0.0,
+        lateral_speed: 0.0,
         braking,
         kind,
         width_m,
         right_edge,
         left_edge,
         confidence,
-        track: motion.track,
+        track: [Some(contact), None, None, None],
     })
 }
 
@@ -1251,7 +1251,8 @@ fn brake_lamps(eyes: &Eyes<'_>, contact: f64, centre: &dyn Fn(f64) -> f64) -> bo
 /// on a large face).
 const MAX_FACE_SAMPLES: f64 = 500.0;
 
-/// A lead's motion, by registering its rear face between frames as a tracker does. The face
+/// `lead` with its motion found by registering its rear face between frames, as a tracker
+/// does (unchanged, untracked, when the face cannot be followed). The face
 /// at `t0` (a vertical plane at its bumper, across the width the bins found and up to 1.5 m,
 /// box-filtered against the noise and sampled about every other pixel) is the template. In
 /// each earlier frame, the face's position then — along the lane and across it — is the one
@@ -1266,15 +1267,12 @@ fn lead_motion(
     input: &PlannerInput<'_>,
     eyes: &Eyes<'_>,
     centre: &dyn Fn(f64) -> f64,
-    contact0: f64,
     ego_speed: f64,
-    (right, left): (f64, f64),
-) -> Motion {
+    lead: LeadSeen,
+) -> LeadSeen {
+    let (contact0, right, left) = (lead.contact_x, lead.right_edge, lead.left_edge);
     let mut track = [Some(contact0), None, None, None];
-    let untracked = |track| Motion {
-        track,
-        ..Motion::untracked(ego_speed, contact0)
-    };
+    let untracked = |track| LeadSeen { track, ..lead };
     let tele = contact0 >= TELE_FROM_M && eyes.tele.is_some();
     let (latest, past) = if tele {
         (eyes.tele.as_ref(), &eyes.past_tele)
@@ -1412,58 +1410,14 @@ fn lead_motion(
         }
     }
     match (slope(&ts, &xs), slope(&ts, &ys)) {
-        (Some((v, se)), Some((lateral, _))) => Motion {
+        (Some((v, se)), Some((lateral, _))) => LeadSeen {
             speed: v.max(0.0),
             speed_se: se,
             lateral_speed: lateral,
             track,
+            ..lead
         },
         _ => untracked(track),
-    }
-}
-
-/// A lead's motion from its track (see [`lead_motion`]).
-struct Motion {
-    speed: f64,
-    speed_se: f64,
-    lateral_speed: f64,
-    track: [Option<f64>; 4],
-}
-
-impl Motion {
-    /// No track: the ego's own speed, with no uncertainty claimed.
-    fn untracked(ego_speed: f64, contact: f64) -> Self {
-        Self {
-            speed: ego_speed,
-            speed_se: 0.0,
-            lateral_speed: 0.0,
-            track: [Some(contact), None, None, None],
-        }
-    }
-}
-
-/// `lead` with its motion tracked over the clip's frames.
-fn with_motion(
-    input: &PlannerInput<'_>,
-    eyes: &Eyes<'_>,
-    centre: &dyn Fn(f64) -> f64,
-    ego_speed: f64,
-    lead: LeadSeen,
-) -> LeadSeen {
-    let m = lead_motion(
-        input,
-        eyes,
-        centre,
-        lead.contact_x,
-        ego_speed,
-        (lead.right_edge, lead.left_edge),
-    );
-    LeadSeen {
-        speed: m.speed,
-        speed_se: m.speed_se,
-        lateral_speed: m.lateral_speed,
-        track: m.track,
-        ..lead
     }
 }
 
