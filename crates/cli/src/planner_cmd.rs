@@ -94,6 +94,13 @@ pub struct BenchWorldArgs {
     /// Image height of every camera, pixels.
     #[arg(long, default_value_t = 320)]
     height: u32,
+    /// Conditions the planner is timed under, comma-separated (`clean` is always timed,
+    /// first); the perturbation itself is untimed.
+    #[arg(long, value_delimiter = ',', default_value = "noise_30")]
+    plan_conditions: Vec<String>,
+    /// Seed of the perturbations' random streams.
+    #[arg(long, default_value_t = 0)]
+    perturb_seed: u64,
     /// Print the results as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -768,11 +775,13 @@ pub fn bench_world(a: BenchWorldArgs) -> Result<ExitCode> {
         bytes as f64 / 1e6
     );
 
-    // (b) the planner, one thread: clips are generated in parallel in small batches (untimed),
-    // then planned one after the other on this thread while the pool is idle.
+    // (b) the planner, one thread, under each condition: clips are generated in parallel in
+    // small batches (untimed), perturbed (untimed), then planned one after the other on this
+    // thread while the pool is idle.
+    let conditions = parse_conditions(&a.plan_conditions, a.perturb_seed)?;
     let planner = ReferencePlanner::new();
-    let mut plan_ms: Vec<f64> = Vec::with_capacity(plan_clips);
-    let mut failures: BTreeMap<String, usize> = BTreeMap::new();
+    let mut plan_ms: Vec<Vec<f64>> = vec![Vec::with_capacity(plan_clips); conditions.len()];
+    let mut failures: BTreeMap<(usize, String), usize> = BTreeMap::new();
     let batch = (2 * threads).max(1);
     let progress = Progress::counting(plan_clips, "clips planned");
     let mut warmed = false;
@@ -782,30 +791,33 @@ pub fn bench_world(a: BenchWorldArgs) -> Result<ExitCode> {
             .into_par_iter()
             .map(|i| generate_clip(&cfg, i))
             .collect::<Result<Vec<Clip>, _>>()?;
-        for clip in &clips {
-            let frames: Vec<Vec<Cow<'_, Frame>>> = clip
-                .cameras
-                .iter()
-                .map(|c| c.frames.iter().map(|f| Cow::Borrowed(&f.image)).collect())
-                .collect();
-            if !warmed {
-                std::hint::black_box(run_planner(&planner, clip, &frames));
-                warmed = true;
-            }
-            let rec = run_planner(&planner, clip, &frames);
-            match rec.result {
-                Ok(_) => plan_ms.push(rec.plan_ms),
-                Err(why) => *failures.entry(why).or_default() += 1,
+        for (clip, i) in clips.iter().zip(start..end) {
+            let key = fogline_campaign::runner::clip_key(i);
+            for (c, cond) in conditions.iter().enumerate() {
+                let frames = condition_frames(clip, key, cond)?;
+                if !warmed {
+                    std::hint::black_box(run_planner(&planner, clip, &frames));
+                    warmed = true;
+                }
+                let rec = run_planner(&planner, clip, &frames);
+                match rec.result {
+                    Ok(_) => plan_ms[c].push(rec.plan_ms),
+                    Err(why) => *failures.entry((c, why)).or_default() += 1,
+                }
             }
             progress.inc();
         }
     }
     progress.finish();
-    let answered = plan_ms.len();
-    let plan = timing(plan_ms);
+    let names: Vec<String> = conditions
+        .iter()
+        .map(|p| p.perturbation().name.clone())
+        .collect();
+    let answered: Vec<usize> = plan_ms.iter().map(Vec::len).collect();
+    let plans: Vec<Timing> = plan_ms.into_iter().map(timing).collect();
 
     let world_met = projected_s <= WORLD_GOAL_S;
-    let plan_met = plan.median_ms.map(|m| m <= PLAN_GOAL_MS);
+    let met = |t: &Timing| t.median_ms.map(|m| m <= PLAN_GOAL_MS);
     let mut out = std::io::stdout().lock();
     if a.json {
         let v = serde_json::json!({
@@ -826,20 +838,21 @@ pub fn bench_world(a: BenchWorldArgs) -> Result<ExitCode> {
                 "goal_s": WORLD_GOAL_S,
                 "met": world_met,
             },
-            "planner": {
+            "planner": names.iter().enumerate().map(|(c, name)| serde_json::json!({
+                "condition": name,
                 "clips": plan_clips,
-                "answered": answered,
+                "answered": answered[c],
                 "threads": 1,
-                "median_ms": plan.median_ms,
-                "p95_ms": plan.p95_ms,
-                "mean_ms": plan.mean_ms,
+                "median_ms": plans[c].median_ms,
+                "p95_ms": plans[c].p95_ms,
+                "mean_ms": plans[c].mean_ms,
                 "goal": format!("<= {PLAN_GOAL_MS} ms per clip, one thread"),
                 "goal_ms": PLAN_GOAL_MS,
-                "met": plan_met,
-                "failures": failures.iter().map(|(reason, clips)| serde_json::json!({
+                "met": met(&plans[c]),
+                "failures": failures.iter().filter(|((k, _), _)| *k == c).map(|((_, reason), clips)| serde_json::json!({
                     "reason": reason, "clips": clips,
                 })).collect::<Vec<_>>(),
-            },
+            })).collect::<Vec<_>>(),
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
         return Ok(ExitCode::SUCCESS);
@@ -864,26 +877,28 @@ pub fn bench_world(a: BenchWorldArgs) -> Result<ExitCode> {
         },
         if world_met { "met" } else { "NOT met" }
     )?;
-    writeln!(
-        out,
-        "planner  one thread, {answered} of {plan_clips} clips answered: {} ms/clip median, {} p95, {} mean",
-        fmt_ms(plan.median_ms),
-        fmt_ms(plan.p95_ms),
-        fmt_ms(plan.mean_ms)
-    )?;
-    match plan_met {
-        Some(met) => writeln!(
+    for (c, name) in names.iter().enumerate() {
+        let plan = &plans[c];
+        writeln!(
             out,
-            "goal     <= {PLAN_GOAL_MS:.0} ms/clip median, one thread: {}",
-            if met { "met" } else { "NOT met" }
-        )?,
-        None => writeln!(
-            out,
-            "goal     <= {PLAN_GOAL_MS:.0} ms/clip median, one thread: not measured (no clip answered)"
-        )?,
+            "planner  {name}, one thread, {} of {plan_clips} clips answered: {} ms/clip median, {} p95, {} mean; goal <= {PLAN_GOAL_MS:.0} ms/clip median: {}",
+            answered[c],
+            fmt_ms(plan.median_ms),
+            fmt_ms(plan.p95_ms),
+            fmt_ms(plan.mean_ms),
+            match met(plan) {
+                Some(true) => "met",
+                Some(false) => "NOT met",
+                None => "not measured (no clip answered)",
+            }
+        )?;
     }
-    for (reason, clips) in &failures {
-        writeln!(out, "planner failed on {clips} clips: {reason}")?;
+    for ((c, reason), clips) in &failures {
+        writeln!(
+            out,
+            "planner failed under {} on {clips} clips: {reason}",
+            names[*c]
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -218,25 +218,33 @@ fn bench_world_prints_parsable_figures() {
     }
     assert_eq!(w["goal_s"], 60.0);
     assert!(w["met"].is_boolean());
-    let p = &v["planner"];
-    assert_eq!(p["clips"], 8);
-    assert_eq!(p["threads"], 1);
-    assert_eq!(p["goal_ms"], 5.0);
-    let answered = p["answered"].as_u64().unwrap();
-    if answered > 0 {
-        let (median, p95) = (
-            p["median_ms"].as_f64().unwrap(),
-            p["p95_ms"].as_f64().unwrap(),
-        );
-        assert!(median > 0.0 && median <= p95 && p95.is_finite());
-    }
-    let failed: u64 = p["failures"]
-        .as_array()
-        .unwrap()
+    // The planner is timed clean and under the default noise_30, in that order.
+    let rows = v["planner"].as_array().unwrap();
+    let names: Vec<&str> = rows
         .iter()
-        .map(|f| f["clips"].as_u64().unwrap())
-        .sum();
-    assert_eq!(answered + failed, 8);
+        .map(|p| p["condition"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["clean", "noise_30"]);
+    for p in rows {
+        assert_eq!(p["clips"], 8);
+        assert_eq!(p["threads"], 1);
+        assert_eq!(p["goal_ms"], 5.0);
+        let answered = p["answered"].as_u64().unwrap();
+        if answered > 0 {
+            let (median, p95) = (
+                p["median_ms"].as_f64().unwrap(),
+                p["p95_ms"].as_f64().unwrap(),
+            );
+            assert!(median > 0.0 && median <= p95 && p95.is_finite());
+        }
+        let failed: u64 = p["failures"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f["clips"].as_u64().unwrap())
+            .sum();
+        assert_eq!(answered + failed, 8);
+    }
 
     let o = fogline(&["bench", "world", "--clips", "0"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
