@@ -8,22 +8,27 @@
 //! | planner decision | target speed |
 //! |---|---|
 //! | keep lane, proceed on green, nudge, pass, turn right | the cruise speed (8 m/s), lower before a turn of the route (see below) |
-//! | follow or slow for the lead | the intelligent driver model behind the perceived lead (gap, speed; braking lamps: −2.6 m/s²), projected 0.5 s ahead |
+//! | follow or slow for the lead | the cruise speed, capped by the lead rule below |
 //! | stop for a red light, a stop sign, or yield to a crossing | `√(2 · 2.5 m/s² · d)`, recomputed every control step, with `d` the distance left to the planned stop point (the planned trajectory's last waypoint), or to 5.5 m before a zebra crossing the planner sees short of it |
 //!
+//! **The road user ahead**, whatever the decision: the target is capped by the intelligent
+//! driver model behind the perceived lead in the ego lane (gap, speed; braking lamps:
+//! −1 m/s² more), projected 0.5 s ahead. The agent steers along its route and never leaves
+//! its lane, so a stop, a turn or a pass is driven behind whoever is in front.
+//!
 //! **Red lights**: once the planner decided to stop for a red or amber light, the agent keeps
-//! that stop point (in distance driven) until the planner reports a green light or the car
-//! is more than 1 m past it — the signal head leaves the cameras' view as the car gets
-//! close.
+//! that stop point (in distance driven; the latest estimate while the light is seen, as the
+//! stop line is found only close up) until the planner reports a green light or the car is
+//! more than 1 m past it — the signal head leaves the cameras' view as the car gets close.
 //!
 //! Before a turn of the route the target is capped so that the car reaches 4 m/s (right) or
 //! 5.5 m/s (left) at the junction, braking at 2 m/s². A speed PID (kp 0.8, ki 0.1 1/s,
 //! throttle ≤ 1) tracks the target; the brake is `0.8·(v − target)` when the car is more
 //! than 0.3 m/s too fast, and 1 when it should stand still.
 //!
-//! **Stop signs**: a stop-sign decision's stop point is kept (the sign leaves the cameras'
-//! view as the car gets close) until the car has stood still (< 0.1 m/s) for 1.5 s there, or
-//! is more than 1 m past it. The planner stops for any stop sign it sees, also once it has
+//! **Stop signs**: a stop-sign decision's stop point (the latest estimate while the sign is
+//! seen) is kept (the sign leaves the cameras' view as the car gets close) until the car has
+//! stood still (< 0.1 m/s) for 1.5 s within 3 m of it, or is more than 1 m past it. The planner stops for any stop sign it sees, also once it has
 //! stopped: after that 1.5 s stop the agent treats stop-sign decisions as "keep lane" for
 //! the next 30 m driven.
 //!
@@ -35,7 +40,7 @@
 //! gets the route as CARLA agents get their global plan.
 
 use fogline_planner::ReferencePlanner;
-use fogline_planner::perceive::ObjectKind;
+use fogline_planner::perceive::{LeadSeen, ObjectKind};
 use fogline_types::clip::{CameraInput, Decision, EgoPose, PlannerInput};
 use fogline_types::motion::EGO_FRONT_M;
 use serde::{Deserialize, Serialize};
@@ -264,20 +269,13 @@ impl Baseline {
             .lead
             .filter(|l| l.kind == ObjectKind::Vehicle)
             .map(|l| l.gap);
-        let to_speed = |d: f64| {
-            if d < 0.5 {
-                0.0
-            } else {
-                (2.0 * p.stop_decel_mps2 * d).sqrt().min(cruise)
-            }
-        };
         // Red-light memory: a red or amber light keeps the car at its stop point until green
         // is seen (the head may leave the cameras' view as the car gets close).
         match decision {
-            Decision::StopForRedLight => {
-                let at = odometer_m + stop_dist();
-                self.red_stop_at_m = Some(self.red_stop_at_m.map_or(at, |m: f64| m.min(at)));
-            }
+            // The latest estimate while the light is seen: the stop line is found only as
+            // the car gets close, and an early guess from the light's distance alone can be
+            // metres short.
+            Decision::StopForRedLight => self.red_stop_at_m = Some(odometer_m + stop_dist()),
             Decision::ProceedOnGreen => self.red_stop_at_m = None,
             _ => {}
         }
@@ -299,22 +297,22 @@ impl Baseline {
                 let at = odometer_m + stop_dist();
                 stop_at = Some(at);
                 if decision == Decision::StopForSign {
-                    self.sign_stop_at_m = Some(self.sign_stop_at_m.map_or(at, |m: f64| m.min(at)));
+                    // The latest estimate while the sign is seen (as for red lights).
+                    self.sign_stop_at_m = Some(at);
                 }
                 cruise
             }
-            Decision::FollowLead | Decision::SlowForLead => match perc.lead {
-                Some(l) => {
-                    let lead_v = l.speed / speed_scale;
-                    let a = idm(speed_mps, cruise, l.gap, speed_mps - lead_v)
-                        + if l.braking { -1.0 } else { 0.0 };
-                    (speed_mps + 0.5 * a).clamp(0.0, cruise)
-                }
-                None => cruise,
-            },
             _ => cruise,
         };
-        let _ = to_speed;
+        // Whatever the decision, the car keeps its distance to the road user ahead in its
+        // lane: the agent steers along its route and never leaves the lane, so a stop, a
+        // turn or a pass is driven behind whoever is in front.
+        let target = target.min(follow_cap(
+            perc.lead.as_ref(),
+            speed_mps,
+            cruise,
+            speed_scale,
+        ));
         self.intent = Intent {
             decision: Some(plan.decision),
             target_mps: target,
@@ -341,8 +339,8 @@ impl Baseline {
         // Stop-sign memory and the unstick rule.
         if v < 0.1 {
             self.stopped_s += dt;
-            let at_sign = self.intent.decision == Some(Decision::StopForSign)
-                || self.sign_stop_at_m.is_some_and(|m| odometer_m > m - 4.0);
+            // Only a stop at the line counts (one in a queue further back does not).
+            let at_sign = self.sign_stop_at_m.is_some_and(|m| odometer_m > m - 3.0);
             if at_sign {
                 self.sign_stop_s += dt;
                 if self.sign_stop_s >= 1.5 {
@@ -428,6 +426,19 @@ pub fn pursuit_steer(
     bike.steer_for_curvature(kappa)
 }
 
+/// The speed cap behind the perceived road user ahead in the ego lane (`None`: no cap):
+/// the intelligent driver model's acceleration behind it (−1 m/s² more when its brake lamps
+/// are lit), projected 0.5 s ahead, within `[0, cruise]`. `speed_scale` converts the
+/// planner's perceived speed back to m/s.
+pub fn follow_cap(lead: Option<&LeadSeen>, speed_mps: f64, cruise: f64, speed_scale: f64) -> f64 {
+    lead.map_or(f64::INFINITY, |l| {
+        let lead_v = l.speed / speed_scale;
+        let a =
+            idm(speed_mps, cruise, l.gap, speed_mps - lead_v) + if l.braking { -1.0 } else { 0.0 };
+        (speed_mps + 0.5 * a).clamp(0.0, cruise)
+    })
+}
+
 /// The intelligent driver model's acceleration (urban settings of the planner).
 pub fn idm(v: f64, v0: f64, gap: f64, dv: f64) -> f64 {
     let (a, b, t, s0): (f64, f64, f64, f64) = (1.5, 3.0, 1.2, 4.0);
@@ -465,6 +476,40 @@ mod tests {
         assert!(pursuit_steer(&s, &route, 0, &bike) > 0.0);
         let s = VehicleState { y_m: -1.0, ..s };
         assert!(pursuit_steer(&s, &route, 0, &bike) < 0.0);
+    }
+
+    #[test]
+    fn the_car_ahead_caps_the_speed_whatever_the_decision() {
+        let lead = |gap: f64, speed: f64| LeadSeen {
+            contact_x: gap + 4.0,
+            gap,
+            speed,
+            speed_se: 0.1,
+            lateral_speed: 0.0,
+            braking: false,
+            kind: ObjectKind::Vehicle,
+            width_m: 1.8,
+            right_edge: -0.9,
+            left_edge: 0.9,
+            confidence: 1.0,
+            track: [None; 4],
+        };
+        assert_eq!(follow_cap(None, 8.0, 8.0, 1.0), f64::INFINITY);
+        // A car standing 20 m ahead: slow down; closer, harder; 5 m ahead: stop.
+        let standing = follow_cap(Some(&lead(20.0, 0.0)), 8.0, 8.0, 1.0);
+        assert!(standing < 7.0, "{standing}");
+        let closer = follow_cap(Some(&lead(12.0, 0.0)), 8.0, 8.0, 1.0);
+        assert!(closer < standing - 1.0, "{closer} vs {standing}");
+        assert_eq!(follow_cap(Some(&lead(5.0, 0.0)), 8.0, 8.0, 1.0), 0.0);
+        // Far and as fast: free.
+        let free = follow_cap(Some(&lead(60.0, 8.0)), 8.0, 8.0, 1.0);
+        assert!(free > 7.5, "{free}");
+        // Perceived speeds are time-lapsed by `speed_scale`: 32 "m/s" at scale 4 is 8 m/s.
+        let lapsed = follow_cap(Some(&lead(20.0, 32.0)), 8.0, 8.0, 4.0);
+        let plain = follow_cap(Some(&lead(20.0, 8.0)), 8.0, 8.0, 1.0);
+        assert!((lapsed - plain).abs() < 1e-9);
+        // Standing behind a standing car: stay.
+        assert_eq!(follow_cap(Some(&lead(4.0, 0.0)), 0.0, 8.0, 1.0), 0.0);
     }
 
     #[test]
