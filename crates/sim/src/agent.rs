@@ -16,6 +16,10 @@
 //! −1 m/s² more), projected 0.5 s ahead. The agent steers along its route and never leaves
 //! its lane, so a stop, a turn or a pass is driven behind whoever is in front.
 //!
+//! **Crossings**: a zebra crossing the planner sees within 20 m caps the target at 4 m/s (a
+//! walker about to step onto it is small in the frames until close; a slower car sees them
+//! in more frames before it is there).
+//!
 //! **Red lights**: once the planner decided to stop for a red or amber light, the agent keeps
 //! that stop point (in distance driven; the latest estimate while the light is seen, as the
 //! stop line is found only close up) until the planner reports a green light or the car is
@@ -71,6 +75,8 @@ pub struct AgentParams {
     pub unstick_mps: f64,
     /// Distance during which a passed stop sign is ignored, m.
     pub sign_memory_m: f64,
+    /// Speed over a crossing the planner sees within `ZEBRA_CAUTION_M`, m/s.
+    pub zebra_mps: f64,
 }
 
 impl Default for AgentParams {
@@ -85,6 +91,7 @@ impl Default for AgentParams {
             unstick_for_s: 4.0,
             unstick_mps: 4.0,
             sign_memory_m: 30.0,
+            zebra_mps: 4.0,
         }
     }
 }
@@ -127,6 +134,9 @@ pub struct Baseline {
     red_stop_at_m: Option<f64>,
     sign_stop_at_m: Option<f64>,
 }
+
+/// A crossing the planner sees closer than this caps the speed at `zebra_mps`, m.
+pub const ZEBRA_CAUTION_M: f64 = 20.0;
 
 /// Gap kept before a crossing when stopping, m.
 pub const CROSSING_GAP_M: f64 = 5.5;
@@ -313,6 +323,10 @@ impl Baseline {
             cruise,
             speed_scale,
         ));
+        // A crossing close ahead is crossed slowly: a walker about to step onto it is small
+        // in the frames until close, and a slower car sees them in more frames before it is
+        // there.
+        let target = target.min(crossing_cap(perc.zebra, p));
         self.intent = Intent {
             decision: Some(plan.decision),
             target_mps: target,
@@ -426,6 +440,15 @@ pub fn pursuit_steer(
     bike.steer_for_curvature(kappa)
 }
 
+/// The speed cap before a zebra crossing seen `zebra` m ahead (`None`: none seen):
+/// `zebra_mps` within [`ZEBRA_CAUTION_M`], else none.
+pub fn crossing_cap(zebra: Option<f64>, p: &AgentParams) -> f64 {
+    match zebra {
+        Some(z) if z < ZEBRA_CAUTION_M => p.zebra_mps,
+        _ => f64::INFINITY,
+    }
+}
+
 /// The speed cap behind the perceived road user ahead in the ego lane (`None`: no cap):
 /// the intelligent driver model's acceleration behind it (−1 m/s² more when its brake lamps
 /// are lit), projected 0.5 s ahead, within `[0, cruise]`. `speed_scale` converts the
@@ -510,6 +533,15 @@ mod tests {
         assert!((lapsed - plain).abs() < 1e-9);
         // Standing behind a standing car: stay.
         assert_eq!(follow_cap(Some(&lead(4.0, 0.0)), 0.0, 8.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn a_near_crossing_caps_the_speed() {
+        let p = AgentParams::default();
+        assert_eq!(crossing_cap(None, &p), f64::INFINITY);
+        assert_eq!(crossing_cap(Some(35.0), &p), f64::INFINITY);
+        assert_eq!(crossing_cap(Some(8.0), &p), p.zebra_mps);
+        assert!(p.zebra_mps < p.cruise_mps);
     }
 
     #[test]
