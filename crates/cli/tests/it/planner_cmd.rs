@@ -113,12 +113,7 @@ fn eval_writes_every_figure() {
         check_row(&c["overall"], reference);
         let median = &c["plan_time"]["median_ms"];
         assert!(median.as_f64().is_some_and(|m| m.is_finite() && m >= 0.0));
-        let failed: u64 = c["failures"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|f| f["clips"].as_u64().unwrap())
-            .sum();
+        let failed = failed_clips(c);
         assert_eq!(failed, c["overall"]["failed"].as_u64().unwrap());
     }
     // The reference planner answers on the clean clips.
@@ -237,15 +232,19 @@ fn bench_world_prints_parsable_figures() {
             );
             assert!(median > 0.0 && median <= p95 && p95.is_finite());
         }
-        let failed: u64 = p["failures"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|f| f["clips"].as_u64().unwrap())
-            .sum();
-        assert_eq!(answered + failed, 8);
+        assert_eq!(answered + failed_clips(p), 8);
     }
 
     let o = fogline(&["bench", "world", "--clips", "0"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// The clips counted in a report row's `failures` list.
+fn failed_clips(row: &Value) -> u64 {
+    row["failures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["clips"].as_u64().unwrap())
+        .sum()
 }
