@@ -55,13 +55,18 @@ struct RunArgs {
     /// (the planning step-limit sweep).
     #[arg(long, value_delimiter = ',', default_value = "main")]
     configs: Vec<String>,
-    /// Deficits, comma-separated: traffic_light, stop_sign, pedestrian, bicycle.
+    /// Deficits, comma-separated: traffic_light, stop_sign, pedestrian, bicycle; `none` runs
+    /// the no-deficit configuration only (main set).
     #[arg(
         long,
         value_delimiter = ',',
         default_value = "traffic_light,stop_sign,pedestrian,bicycle"
     )]
     deficits: Vec<String>,
+    /// Only these routes of the suite, comma-separated, 0-based (e.g. one route with `-vv`
+    /// to trace the agent). Default: all.
+    #[arg(long, value_delimiter = ',')]
+    routes: Vec<usize>,
     /// The first seed (towns, routes, traffic).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -138,9 +143,12 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     }
     let mut deficits = Vec::new();
     for d in &a.deficits {
+        if d == "none" {
+            continue; // the no-deficit configuration only
+        }
         let k = DeficitKind::parse(d).with_context(|| {
             format!(
-                "--deficits: unknown deficit {d:?} (traffic_light, stop_sign, pedestrian, bicycle)"
+                "--deficits: unknown deficit {d:?} (traffic_light, stop_sign, pedestrian, bicycle, or none)"
             )
         })?;
         if !deficits.contains(&k) {
@@ -182,9 +190,14 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         run: run_params,
         system_time_limit_s: a.system_time_limit_s,
         llm_latency_ms,
+        routes: (!a.routes.is_empty()).then(|| a.routes.clone()),
     };
     params.validate()?;
-    let n_runs = params.suite.n_routes() * params.configs.len() * params.seeds.len();
+    let n_routes = params
+        .routes
+        .as_ref()
+        .map_or(params.suite.n_routes(), Vec::len);
+    let n_runs = n_routes * params.configs.len() * params.seeds.len();
     log::info!(
         "sim run: suite {} ({} routes) x {} configuration(s) x {} seed(s) = {n_runs} runs on {} thread(s)",
         params.suite.name,

@@ -24,6 +24,10 @@ pub struct Plan {
     pub trajectory: Trajectory,
     /// One sentence.
     pub explanation: String,
+    /// Where the plan stands still, m ahead of the rear axle, for the decisions that stop
+    /// (a red or amber light, a stop sign, a road user crossing): the perceived stop point
+    /// itself, which the trajectory reaches only if its horizon is long enough.
+    pub stop_at: Option<f64>,
 }
 
 /// Decides and plans.
@@ -53,6 +57,7 @@ pub fn plan(p: &Perception) -> Plan {
             decision: Decision::YieldToCrossing,
             trajectory: traj,
             explanation: say_yield(l.contact_x),
+            stop_at: Some(stop_at),
         };
     }
     // 2. Red or amber light.
@@ -73,6 +78,7 @@ pub fn plan(p: &Perception) -> Plan {
             decision: Decision::StopForRedLight,
             trajectory: traj,
             explanation: say_red(lamp, line),
+            stop_at: Some(stop_at),
         };
     }
     // 3. Stop sign.
@@ -91,6 +97,7 @@ pub fn plan(p: &Perception) -> Plan {
             decision: Decision::StopForSign,
             trajectory: traj,
             explanation: say_sign(line),
+            stop_at: Some(stop_at),
         };
     }
     // 4. The road ends: turn right.
@@ -114,6 +121,7 @@ pub fn plan(p: &Perception) -> Plan {
             decision: Decision::TurnRight,
             trajectory: rollout(&turn, &shifted(Lateral::none()), &dist),
             explanation: say_turn(x_c),
+            stop_at: None,
         };
     }
     // 5./6. Something in the lane.
@@ -136,6 +144,7 @@ pub fn plan(p: &Perception) -> Plan {
                 decision: Decision::NudgeRight,
                 trajectory: rollout(&path, &shifted(lat), &cruise(v0)),
                 explanation: say_nudge(l.contact_x, offset),
+                stop_at: None,
             };
         }
         let idm = Idm::urban(v0.max(1.0));
@@ -153,6 +162,7 @@ pub fn plan(p: &Perception) -> Plan {
                 decision: Decision::SlowForLead,
                 trajectory: rollout(&path, &shifted(Lateral::none()), &dist),
                 explanation: say_slow(l.gap, l.width_m),
+                stop_at: None,
             };
         }
         if v0 - l.speed > SLOW_LEAD && p.left_lane_free {
@@ -163,6 +173,7 @@ pub fn plan(p: &Perception) -> Plan {
                 decision: Decision::PassLeft,
                 trajectory: rollout(&path, &shifted(lat), &cruise(v0)),
                 explanation: say_pass(l.gap, l.width_m),
+                stop_at: None,
             };
         }
         let dist = follow(
@@ -178,6 +189,7 @@ pub fn plan(p: &Perception) -> Plan {
             decision: Decision::FollowLead,
             trajectory: rollout(&path, &shifted(Lateral::none()), &dist),
             explanation: say_follow(l.gap, l.width_m),
+            stop_at: None,
         };
     }
     // 7. Green light.
@@ -186,12 +198,14 @@ pub fn plan(p: &Perception) -> Plan {
             decision: Decision::ProceedOnGreen,
             trajectory: rollout(&path, &shifted(Lateral::none()), &cruise(v0)),
             explanation: say_green(d),
+            stop_at: None,
         };
     }
     Plan {
         decision: Decision::KeepLane,
         trajectory: rollout(&path, &shifted(Lateral::none()), &cruise(v0)),
         explanation: say_keep(p.kappa, p.lane.is_some()),
+        stop_at: None,
     }
 }
 

@@ -9,7 +9,7 @@
 //! |---|---|
 //! | keep lane, proceed on green, nudge, pass, turn right | the cruise speed (8 m/s), lower before a turn of the route (see below) |
 //! | follow or slow for the lead | the cruise speed, capped by the lead rule below |
-//! | stop for a red light, a stop sign, or yield to a crossing | `√(2 · 2.5 m/s² · d)`, recomputed every control step, with `d` the distance left to the planned stop point (the planned trajectory's last waypoint), or to 5.5 m before a zebra crossing the planner sees short of it |
+//! | stop for a red light, a stop sign, or yield to a crossing | `√(2 · 2.5 m/s² · d)`, recomputed every control step, with `d` the distance left to the planner's stop point ([`fogline_planner::plan::Plan::stop_at`]), or to 5.5 m before a zebra crossing the planner sees short of it |
 //!
 //! **The road user ahead**, whatever the decision: the target is capped by the intelligent
 //! driver model behind the perceived lead in the ego lane (gap, speed; braking lamps:
@@ -110,6 +110,9 @@ pub struct Intent {
     pub lead_gap_m: Option<f64>,
     /// Whether the planner failed (the agent then brakes).
     pub failed: bool,
+    /// The gap to the vehicle ahead (seen, or remembered standing), m: the unstick rule
+    /// stops [`UNSTICK_KEEP_M`] short of it.
+    pub vehicle_gap_m: Option<f64>,
 }
 
 /// The baseline agent's state.
@@ -133,6 +136,7 @@ pub struct Baseline {
     pub debug: String,
     red_stop_at_m: Option<f64>,
     sign_stop_at_m: Option<f64>,
+    lead_memory: LeadMemory,
 }
 
 /// A crossing the planner sees closer than this caps the speed at `zebra_mps`, m.
@@ -167,6 +171,7 @@ impl Baseline {
             debug: String::new(),
             red_stop_at_m: None,
             sign_stop_at_m: None,
+            lead_memory: LeadMemory::default(),
         }
     }
 
@@ -193,6 +198,23 @@ impl Baseline {
             .min(profile(self.intent.stop_at_m))
             .min(profile(self.red_stop_at_m))
             .min(profile(self.sign_stop_at_m))
+    }
+
+    /// The deceleration that stops the car at the nearest of its stop points from speed
+    /// `v`, m/s² (0 without one).
+    pub fn needed_decel(&self, odometer_m: f64, v: f64) -> f64 {
+        [
+            self.intent.stop_at_m,
+            self.red_stop_at_m,
+            self.sign_stop_at_m,
+        ]
+        .into_iter()
+        .flatten()
+        .map(|m| {
+            let d = m - odometer_m - 0.3;
+            v * v / (2.0 * d.max(0.05))
+        })
+        .fold(0.0, f64::max)
     }
 
     /// Whether the unstick rule is driving.
@@ -230,6 +252,7 @@ impl Baseline {
                     stop_at_m: None,
                     lead_gap_m: None,
                     failed: true,
+                    vehicle_gap_m: None,
                 };
                 return self.intent;
             }
@@ -265,7 +288,12 @@ impl Baseline {
         // short of it (where the stop line is; this keeps the crossing's stripes out of the
         // planner's road-brightness reference while the car waits).
         let stop_dist = || {
-            let planned = plan.trajectory.xy.last().map_or(0.0, |q| q[0].hypot(q[1]));
+            // The perceived stop point (the trajectory's end falls short of it when the
+            // horizon is short: standing still, it is where the car stands).
+            let planned = plan.stop_at.map_or_else(
+                || plan.trajectory.xy.last().map_or(0.0, |q| q[0].hypot(q[1])),
+                |d| d.max(0.0),
+            );
             let before_zebra = perc
                 .zebra
                 .filter(|&z| perc.light.is_none_or(|(_, d)| z < d))
@@ -317,12 +345,25 @@ impl Baseline {
         // Whatever the decision, the car keeps its distance to the road user ahead in its
         // lane: the agent steers along its route and never leaves the lane, so a stop, a
         // turn or a pass is driven behind whoever is in front.
-        let target = target.min(follow_cap(
-            perc.lead.as_ref(),
-            speed_mps,
-            cruise,
-            speed_scale,
-        ));
+        // A vehicle standing (or crawling) ahead is remembered: close up it can drop out of
+        // the frames (its contact below the wide camera's view, or on paint that reads
+        // like it), and a car that no longer sees it must not drive into it.
+        self.lead_memory
+            .update(perc.lead.as_ref(), odometer_m, self.plans, speed_scale);
+        let remembered = perc
+            .lead
+            .is_none()
+            .then(|| self.lead_memory.recall(odometer_m))
+            .flatten();
+        let ahead = perc.lead.as_ref().or(remembered.as_ref());
+        let target = target.min(follow_cap(ahead, speed_mps, cruise, speed_scale));
+        // What the unstick rule keeps clear of: the vehicle ahead seen beyond
+        // `UNSTICK_KEEP_M`, else the one remembered (which may be closer by now).
+        let vehicle_gap = perc
+            .lead
+            .filter(|l| l.kind == ObjectKind::Vehicle && l.gap >= UNSTICK_KEEP_M)
+            .map(|l| l.gap)
+            .or(self.lead_memory.gap(odometer_m));
         // A crossing close ahead is crossed slowly: a walker about to step onto it is small
         // in the frames until close, and a slower car sees them in more frames before it is
         // there.
@@ -333,6 +374,7 @@ impl Baseline {
             stop_at_m: stop_at,
             lead_gap_m: lead_gap,
             failed: false,
+            vehicle_gap_m: vehicle_gap,
         };
         self.intent
     }
@@ -376,10 +418,24 @@ impl Baseline {
         }
         let target = if self.unstick_left_s > 0.0 {
             p.unstick_mps
+                .min(unstick_cap(self.intent.vehicle_gap_m, p.stop_decel_mps2))
         } else {
             self.target_now(odometer_m)
         };
         let steer = pursuit_steer(state, route, route_index, bike);
+        // A stop point closer than the planned deceleration allows (a walker stepping out,
+        // a light turning): brake as hard as it takes, up to full braking.
+        if self.unstick_left_s <= 0.0 {
+            let need = self.needed_decel(odometer_m, v);
+            if let Some(brake) = emergency_brake(need, p.stop_decel_mps2, bike) {
+                self.integral = 0.0;
+                return VehicleControl {
+                    throttle: 0.0,
+                    brake,
+                    steer,
+                };
+            }
+        }
         speed_control(&mut self.integral, v, target, dt, steer)
     }
 }
@@ -449,6 +505,103 @@ pub fn crossing_cap(zebra: Option<f64>, p: &AgentParams) -> f64 {
     }
 }
 
+/// The unstick rule escapes what only looks like an obstacle, but it does not drive into
+/// a vehicle seen standing ahead: it stops this far short of one (by the remembered
+/// position once the car is too close to see it), m. A vehicle read closer than this
+/// without first being seen farther away is taken for a misreading (the ground at the
+/// camera's near edge, a kerb seen across a turn) and ignored.
+pub const UNSTICK_KEEP_M: f64 = 2.0;
+
+/// The unstick rule's speed cap for a vehicle ahead at `gap` m (`None`: none): the braking
+/// profile to [`UNSTICK_KEEP_M`] short of it.
+pub fn unstick_cap(gap: Option<f64>, decel: f64) -> f64 {
+    match gap {
+        Some(g) => (2.0 * decel * (g - UNSTICK_KEEP_M).max(0.0)).sqrt(),
+        None => f64::INFINITY,
+    }
+}
+
+/// A vehicle ahead slower than this is remembered when it drops out of view, m/s.
+pub const LEAD_MEMORY_MPS: f64 = 1.0;
+/// For this many planning steps without seeing it again (4 s at 2.5 Hz).
+pub const LEAD_MEMORY_PLANS: u64 = 10;
+
+/// The brake for a stop point that needs `need` m/s² (see [`Baseline::needed_decel`]):
+/// `None` while the planned deceleration `planned` suffices (the speed PID follows the
+/// braking profile), else the brake that gives `need` plus a margin, up to full braking.
+pub fn emergency_brake(need: f64, planned: f64, bike: &BicycleParams) -> Option<f64> {
+    (need > planned).then(|| (need / bike.brake_accel_mps2.abs() + 0.1).min(1.0))
+}
+
+/// The vehicle ahead last seen standing or crawling, remembered while it is out of view:
+/// close up, its ground contact drops below the wide camera's view (or onto paint that
+/// reads like it), and a car that no longer sees it must not drive into it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LeadMemory {
+    /// Where its rear is, in distance driven, m; and the planning step it was last seen.
+    seen: Option<(f64, u64)>,
+}
+
+impl LeadMemory {
+    /// Updates the memory with planning step `plan`'s lead (`None`: none seen).
+    /// A vehicle slower than [`LEAD_MEMORY_MPS`] seen at least [`UNSTICK_KEEP_M`] away is
+    /// remembered; one read closer keeps the memory fresh without moving it (such a
+    /// reading alone is taken for a misreading); a moving vehicle replaces it. Without a
+    /// lead it is forgotten once the car has reached it or after [`LEAD_MEMORY_PLANS`]
+    /// steps.
+    pub fn update(
+        &mut self,
+        lead: Option<&LeadSeen>,
+        odometer_m: f64,
+        plan: u64,
+        speed_scale: f64,
+    ) {
+        match lead.filter(|l| l.kind == ObjectKind::Vehicle) {
+            Some(l) if l.speed / speed_scale < LEAD_MEMORY_MPS && l.gap >= UNSTICK_KEEP_M => {
+                self.seen = Some((odometer_m + l.gap, plan));
+            }
+            Some(l) if l.gap < UNSTICK_KEEP_M => {
+                if let Some((at, _)) = self.seen {
+                    self.seen = Some((at, plan));
+                }
+            }
+            Some(_) => self.seen = None,
+            None => {
+                if self
+                    .seen
+                    .is_some_and(|(at, k)| at < odometer_m || plan - k > LEAD_MEMORY_PLANS)
+                {
+                    self.seen = None;
+                }
+            }
+        }
+    }
+
+    /// The remembered gap at `odometer_m`, m.
+    pub fn gap(&self, odometer_m: f64) -> Option<f64> {
+        self.seen.map(|(at, _)| at - odometer_m)
+    }
+
+    /// The remembered vehicle as a standing lead at `odometer_m`.
+    pub fn recall(&self, odometer_m: f64) -> Option<LeadSeen> {
+        let gap = self.gap(odometer_m)?;
+        Some(LeadSeen {
+            contact_x: gap + EGO_FRONT_M,
+            gap,
+            speed: 0.0,
+            speed_se: 0.0,
+            lateral_speed: 0.0,
+            braking: false,
+            kind: ObjectKind::Vehicle,
+            width_m: 1.8,
+            right_edge: -0.9,
+            left_edge: 0.9,
+            confidence: 0.0,
+            track: [None; 4],
+        })
+    }
+}
+
 /// The speed cap behind the perceived road user ahead in the ego lane (`None`: no cap):
 /// the intelligent driver model's acceleration behind it (−1 m/s² more when its brake lamps
 /// are lit), projected 0.5 s ahead, within `[0, cruise]`. `speed_scale` converts the
@@ -503,20 +656,7 @@ mod tests {
 
     #[test]
     fn the_car_ahead_caps_the_speed_whatever_the_decision() {
-        let lead = |gap: f64, speed: f64| LeadSeen {
-            contact_x: gap + 4.0,
-            gap,
-            speed,
-            speed_se: 0.1,
-            lateral_speed: 0.0,
-            braking: false,
-            kind: ObjectKind::Vehicle,
-            width_m: 1.8,
-            right_edge: -0.9,
-            left_edge: 0.9,
-            confidence: 1.0,
-            track: [None; 4],
-        };
+        let lead = vehicle;
         assert_eq!(follow_cap(None, 8.0, 8.0, 1.0), f64::INFINITY);
         // A car standing 20 m ahead: slow down; closer, harder; 5 m ahead: stop.
         let standing = follow_cap(Some(&lead(20.0, 0.0)), 8.0, 8.0, 1.0);
@@ -542,6 +682,66 @@ mod tests {
         assert_eq!(crossing_cap(Some(35.0), &p), f64::INFINITY);
         assert_eq!(crossing_cap(Some(8.0), &p), p.zebra_mps);
         assert!(p.zebra_mps < p.cruise_mps);
+    }
+
+    fn vehicle(gap: f64, speed: f64) -> LeadSeen {
+        LeadSeen {
+            contact_x: gap + 4.0,
+            gap,
+            speed,
+            speed_se: 0.1,
+            lateral_speed: 0.0,
+            braking: false,
+            kind: ObjectKind::Vehicle,
+            width_m: 1.8,
+            right_edge: -0.9,
+            left_edge: 0.9,
+            confidence: 1.0,
+            track: [None; 4],
+        }
+    }
+
+    #[test]
+    fn a_standing_car_is_remembered_out_of_view() {
+        let mut m = LeadMemory::default();
+        // Seen standing 6 m ahead at odometer 100: remembered at 106.
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 1.0);
+        assert_eq!(m.gap(103.0), Some(3.0));
+        // Out of view while the car closes in: still there, as a standing lead that stops
+        // the car.
+        m.update(None, 103.0, 2, 1.0);
+        let r = m.recall(103.0).unwrap();
+        assert_eq!((r.gap, r.speed, r.kind), (3.0, 0.0, ObjectKind::Vehicle));
+        assert_eq!(follow_cap(Some(&r), 2.0, 8.0, 1.0), 0.0);
+        // Read 1 m away (too close to trust alone): kept fresh, not moved.
+        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 9, 1.0);
+        m.update(None, 103.0, 18, 1.0);
+        assert_eq!(m.gap(103.0), Some(3.0));
+        // Forgotten after `LEAD_MEMORY_PLANS` steps unseen...
+        m.update(None, 103.0, 9 + LEAD_MEMORY_PLANS + 1, 1.0);
+        assert_eq!(m.gap(103.0), None);
+        // ... or once it drives off (seen moving), or a close reading alone: never stored.
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 1.0);
+        m.update(Some(&vehicle(9.0, 16.0)), 100.0, 2, 4.0);
+        assert_eq!(m.gap(100.0), None);
+        m.update(Some(&vehicle(0.3, 0.0)), 100.0, 3, 1.0);
+        assert_eq!(m.gap(100.0), None);
+    }
+
+    #[test]
+    fn unstick_stops_short_of_a_car_and_brakes_hard_when_it_must() {
+        let p = AgentParams::default();
+        assert_eq!(unstick_cap(None, p.stop_decel_mps2), f64::INFINITY);
+        assert_eq!(unstick_cap(Some(UNSTICK_KEEP_M), p.stop_decel_mps2), 0.0);
+        assert_eq!(unstick_cap(Some(0.5), p.stop_decel_mps2), 0.0);
+        assert!(unstick_cap(Some(10.0), p.stop_decel_mps2) > p.unstick_mps);
+        let bike = BicycleParams::default();
+        // The planned 2.5 m/s² suffices: the PID follows the profile.
+        assert_eq!(emergency_brake(2.0, p.stop_decel_mps2, &bike), None);
+        // 8 m/s with 8 m left needs 4 m/s²: most of the brake; more than the car has: full.
+        let b = emergency_brake(64.0 / 16.0, p.stop_decel_mps2, &bike).unwrap();
+        assert!(b * bike.brake_accel_mps2.abs() >= 4.0 && b < 1.0, "{b}");
+        assert_eq!(emergency_brake(9.0, p.stop_decel_mps2, &bike), Some(1.0));
     }
 
     #[test]

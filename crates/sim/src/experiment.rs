@@ -33,6 +33,10 @@ pub struct ExperimentParams {
     pub system_time_limit_s: f64,
     /// Latency counted per LLM call for system time, ms (`None`: the measured latency).
     pub llm_latency_ms: Option<f64>,
+    /// Only these routes of the suite (0-based; `None`: all), e.g. to re-run one route with
+    /// trace logging.
+    #[serde(default)]
+    pub routes: Option<Vec<usize>>,
 }
 
 impl ExperimentParams {
@@ -41,6 +45,17 @@ impl ExperimentParams {
         self.suite.validate()?;
         self.run.sensors.validate()?;
         self.run.bicycle.validate()?;
+        if let Some(r) = &self.routes {
+            let n = self.suite.n_routes();
+            if let Some(bad) = r.iter().find(|&&k| k >= n) {
+                return Err(SimError::Params(format!(
+                    "route {bad}: the suite has {n} route(s) (0-based)"
+                )));
+            }
+            if r.is_empty() {
+                return Err(SimError::Params("the route list is empty".into()));
+            }
+        }
         if self.seeds.is_empty() {
             return Err(SimError::Params("at least one seed is needed".into()));
         }
@@ -134,6 +149,9 @@ pub fn run_experiment(
     for (si, suite) in suites.iter().enumerate() {
         for ci in 0..params.configs.len() {
             for ri in 0..suite.cases.len() {
+                if params.routes.as_ref().is_some_and(|r| !r.contains(&ri)) {
+                    continue;
+                }
                 items.push((si, ci, ri));
             }
         }

@@ -48,6 +48,7 @@
 //!     run: RunParams::default(),
 //!     system_time_limit_s: 1800.0,
 //!     llm_latency_ms: Some(1000.0),
+//!     routes: None,
 //! };
 //! let results = run_experiment(&params, 0, &|_, _| {})?;
 //! print!("{}", fogline_sim::output::markdown(&results));

@@ -190,6 +190,18 @@ fn main_table(out: &mut String, results: &Results, limited: bool) {
         out.push_str("(no configuration of this table ran)\n");
         return;
     }
+    let pick: &dyn Fn(&ConfigSummary) -> &Metrics = if limited {
+        &|c| &c.system_limited
+    } else {
+        &|c| &c.unlimited
+    };
+    let none = s.config("no_deficit");
+    if deficits.is_empty() {
+        // Only the baseline ran (`--deficits none`): one column.
+        out.push_str("| Experiment | Metric | All routes |\n|---|---|---|\n");
+        metric_rows(out, "No deficit", &[none], pick, !limited);
+        return;
+    }
     let _ = write!(out, "| Experiment | Metric |");
     for k in &deficits {
         let _ = write!(out, " {} |", title(*k));
@@ -200,12 +212,6 @@ fn main_table(out: &mut String, results: &Results, limited: bool) {
         out.push_str("---|");
     }
     out.push('\n');
-    let pick: &dyn Fn(&ConfigSummary) -> &Metrics = if limited {
-        &|c| &c.system_limited
-    } else {
-        &|c| &c.unlimited
-    };
-    let none = s.config("no_deficit");
     let row: Vec<Option<&ConfigSummary>> = deficits.iter().map(|_| none).collect();
     metric_rows(out, "No deficit", &row, pick, !limited);
     let row: Vec<Option<&ConfigSummary>> = deficits

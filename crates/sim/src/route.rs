@@ -205,11 +205,16 @@ pub fn generate(
                     continue;
                 }
                 let cyclist = draw.chance(0.4);
+                let trigger_m = draw.range(22.0, 38.0);
+                // From the sidewalk on the ego lane's side, as CARLA's scenario 3
+                // (DynamicObjectCrossing) places its adversary; the draw that once chose a
+                // side is kept so that the other draws of a seed stay what they were.
+                let _ = draw.chance(0.5);
                 events.push(CrossingEvent {
                     s_m: s,
-                    trigger_m: draw.range(22.0, 38.0),
+                    trigger_m,
                     cyclist,
-                    from_right: draw.chance(0.5),
+                    from_right: true,
                     speed_mps: if cyclist {
                         draw.range(3.0, 4.5)
                     } else {
@@ -297,6 +302,13 @@ mod tests {
                         .iter()
                         .all(|j| e.s_m < j.s_stop_line_m - 25.0 || e.s_m > j.s_exit_m + 20.0)
                 );
+                // From the sidewalk on the ego lane's side (CARLA's scenario 3), across the
+                // whole road: the start is right of the route, the end left of it.
+                assert!(e.from_right);
+                let (a, b) = r.event_endpoints(e);
+                let (p, u) = r.path.pose(e.s_m);
+                let left = |q: P2| -u[1] * (q[0] - p[0]) + u[0] * (q[1] - p[1]);
+                assert!(left(a) < -3.0 && left(b) > 5.0, "{} {}", left(a), left(b));
             }
         }
     }

@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 use crate::SimError;
 use crate::agent::{AgentInput, AgentParams, Baseline};
 use crate::config::Config;
-use crate::geom::{Obb, dist, dot, sub, within};
+use crate::geom::{Obb, P2, dist, dot, sub, within};
 use crate::route::Route;
 use crate::score::{
     BlockedMonitor, CollisionFilter, Event, EventKind, OutsideLanesMonitor, RedLightMonitor,
@@ -611,6 +611,30 @@ pub fn run_route(
                         speed_scale,
                     );
                     parts[1] += clock.elapsed().as_secs_f64();
+                    if log::log_enabled!(log::Level::Trace) {
+                        for n in &traffic.npcs {
+                            let (ax, ay) = ego_frame(&ego, n.pos);
+                            if (0.0..90.0).contains(&ax) && ay.abs() < 20.0 {
+                                log::trace!(
+                                    "truth t {t:.1} npc {} at {ax:.1} {ay:+.1} v {:.1} a {:.1}",
+                                    n.id,
+                                    n.speed_mps,
+                                    n.accel_mps2
+                                );
+                            }
+                        }
+                        for w in &traffic.walkers {
+                            let (ax, ay) = ego_frame(&ego, w.pos);
+                            if (3.0..45.0).contains(&ax) && (-4.0..8.0).contains(&ay) {
+                                log::trace!(
+                                    "truth t {t:.1} walker {} event {} at {ax:.1} {ay:+.1} moving {:.1}",
+                                    w.id,
+                                    w.event,
+                                    w.speed_mps
+                                );
+                            }
+                        }
+                    }
                 }
             }
             prev_speed = ego.speed_mps;
@@ -664,8 +688,18 @@ pub fn run_route(
         for n in &traffic.npcs {
             if within(n.pos, ebox.c, 8.0)
                 && ebox.overlaps(&n.obb())
-                && collisions.contact(n.id, n.pos, t)
+                && collisions.contact(n.id, ebox.c, t)
             {
+                if log::log_enabled!(log::Level::Debug) {
+                    debug_collision(
+                        t,
+                        &format!("vehicle {}", n.id),
+                        &ego,
+                        n.pos,
+                        n.speed_mps,
+                        &agent,
+                    );
+                }
                 let mut e = Event::new(EventKind::CollisionVehicle, t, n.pos[0], n.pos[1]);
                 e.actor = Some(n.id);
                 events.push(e);
@@ -674,7 +708,7 @@ pub fn run_route(
         for w in &traffic.walkers {
             if within(w.pos, ebox.c, 6.0)
                 && ebox.overlaps(&w.obb())
-                && collisions.contact(w.id, w.pos, t)
+                && collisions.contact(w.id, ebox.c, t)
             {
                 // A bicycle is a vehicle in CARLA; a walker is a pedestrian.
                 let kind = if w.cyclist {
@@ -682,6 +716,10 @@ pub fn run_route(
                 } else {
                     EventKind::CollisionPedestrian
                 };
+                if log::log_enabled!(log::Level::Debug) {
+                    let what = format!("{kind:?} walker {} event {}", w.id, w.event);
+                    debug_collision(t, &what, &ego, w.pos, w.speed_mps, &agent);
+                }
                 let mut e = Event::new(kind, t, w.pos[0], w.pos[1]);
                 e.actor = Some(w.id);
                 events.push(e);
@@ -690,7 +728,7 @@ pub fn run_route(
         for (k, b) in town.buildings.iter().enumerate() {
             if within(b.obb.c, ebox.c, b.obb.hl + 6.0)
                 && ebox.overlaps(&b.obb)
-                && collisions.contact(500_000 + k as u64, pos, t)
+                && collisions.contact(500_000 + k as u64, ebox.c, t)
             {
                 events.push(Event::new(EventKind::CollisionLayout, t, pos[0], pos[1]));
             }
@@ -701,7 +739,10 @@ pub fn run_route(
             .map(|l| (l.id, l.pos, 0.15))
             .chain(town.signs.iter().map(|s| (s.id, s.pos, 0.1)))
         {
-            if within(p, ebox.c, 5.0) && ebox.overlaps_disc(p, r) && collisions.contact(id, p, t) {
+            if within(p, ebox.c, 5.0)
+                && ebox.overlaps_disc(p, r)
+                && collisions.contact(id, ebox.c, t)
+            {
                 events.push(Event::new(EventKind::CollisionLayout, t, p[0], p[1]));
             }
         }
@@ -755,7 +796,7 @@ pub fn run_route(
         if tick.is_multiple_of(20) && log::log_enabled!(log::Level::Trace) {
             let i = agent.intent();
             log::trace!(
-                "t {t:6.1} s {route_s:7.1} lat {:+.2} dyaw {:+.2} v {:5.2} target {:5.2} {:?} deficit {} rco {} ctl {:.2}/{:.2}/{:+.2} | {}",
+                "t {t:6.1} s {route_s:7.1} lat {:+.2} dyaw {:+.2} v {:5.2} target {:5.2}/{:5.2} {:?} deficit {} rco {} ctl {:.2}/{:.2}/{:+.2} | {}",
                 route
                     .path
                     .project(pos, (route_s - 5.0).max(0.0), route_s + 10.0)
@@ -766,6 +807,7 @@ pub fn run_route(
                 },
                 ego.speed_mps,
                 i.target_mps,
+                agent.target_now(odometer),
                 i.decision,
                 deficit_agent,
                 rco_active,
@@ -1029,4 +1071,25 @@ fn traffic_class(b: &ObjectBox) -> bool {
 /// Whether `obb` overlaps any building of `town` (for tests of the layout).
 pub fn hits_building(town: &Town, obb: &Obb) -> bool {
     town.buildings.iter().any(|b| b.obb.overlaps(obb))
+}
+
+/// `p` in the ego's frame: metres ahead of and left of its rear axle.
+fn ego_frame(ego: &VehicleState, p: P2) -> (f64, f64) {
+    let h = ego.heading();
+    let d = sub(p, ego.point(0.0, 0.0));
+    (dot(d, h), -h[1] * d[0] + h[0] * d[1])
+}
+
+/// A debug line for a collision: who, the speeds, where the other was, what the agent meant
+/// to do (for tracing why it happened).
+fn debug_collision(t: f64, what: &str, ego: &VehicleState, at: P2, speed: f64, agent: &Baseline) {
+    let (ahead, left) = ego_frame(ego, at);
+    let i = agent.intent();
+    log::debug!(
+        "collision t {t:.1} {what} v {:.2} other v {speed:.2} at ahead {ahead:+.2} left {left:+.2} target {:.2} {:?} lead gap {:?}",
+        ego.speed_mps,
+        i.target_mps,
+        i.decision,
+        i.lead_gap_m
+    );
 }

@@ -619,8 +619,10 @@ impl CollisionFilter {
             .retain(|&p| dist(p, ego) <= COLLISION_FORGET_M);
     }
 
-    /// A contact with `actor` at `at` (game time `t_s`): `true` when it counts as a new
-    /// collision (and registers it).
+    /// A contact with `actor` while the ego is at `at` (game time `t_s`): `true` when it
+    /// counts as a new collision (and registers it). As in CARLA's `CollisionTest`, the
+    /// location registered is the ego's, so a contact that lasts while the ego stands
+    /// counts once.
     pub fn contact(&mut self, actor: u64, at: [f64; 2], t_s: f64) -> bool {
         if let Some((a, t)) = self.last_actor
             && a == actor
@@ -1042,6 +1044,14 @@ mod tests {
         // The same actor again after 5 s, far from registrations: counts.
         f.tick([40.0, 0.0]);
         assert!(f.contact(2, [40.0, 0.0], 6.1));
+        // A car resting against a standing ego for a minute: one collision.
+        let mut f = CollisionFilter::new();
+        let mut counted = 0;
+        for k in 0..1200 {
+            f.tick([100.0, 0.0]);
+            counted += usize::from(f.contact(7, [100.0, 0.0], k as f64 * 0.05));
+        }
+        assert_eq!(counted, 1);
     }
 
     #[test]

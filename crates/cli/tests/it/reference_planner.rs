@@ -411,3 +411,51 @@ fn detections_match_the_renderers_boxes_and_the_drawn_deficits() {
     assert_eq!(found_exact, drawn, "deficits found exactly");
     assert_eq!(spurious, 0, "deficits found where none was drawn");
 }
+
+/// A plan that stops says where (`Plan::stop_at`): the perceived stop point, just before the
+/// stop line the planner saw, and never behind the car; a plan that does not stop has none.
+#[test]
+fn a_stopping_plan_reports_its_stop_point() {
+    use fogline_types::clip::Decision;
+    let planner = ReferencePlanner::new();
+    let config = WorldConfig {
+        seed: 31,
+        depth: false,
+        mix: ScenarioMix::only("STOP_SIGNAL", 8).unwrap(),
+        ..WorldConfig::default()
+    };
+    let mut stops = 0;
+    for i in 0..config.mix.total() {
+        let clip = generate_clip(&config, i).unwrap();
+        let fs = frames(&clip, i, "clean");
+        let (p, plan) = planner.plan_with_perception(&input(&clip, &fs)).unwrap();
+        let stopping = matches!(
+            plan.decision,
+            Decision::StopForSign | Decision::StopForRedLight | Decision::YieldToCrossing
+        );
+        assert_eq!(plan.stop_at.is_some(), stopping, "{:?}", plan.decision);
+        let front = fogline_types::motion::EGO_FRONT_M;
+        if let Some(at) = plan.stop_at {
+            stops += 1;
+            // Short of what it stops for, with the front bumper.
+            let before = match plan.decision {
+                Decision::StopForSign => p.stop_sign,
+                Decision::StopForRedLight => p.light.map(|l| l.1),
+                _ => p.lead.map(|l| l.contact_x),
+            }
+            .unwrap_or(f64::INFINITY);
+            assert!(at + front < before, "stop at {at} for {before}");
+            // Where a stop line was seen near the sign: 0.5 m before it.
+            if let (Some(line), Some(sign)) = (p.stop_line, p.stop_sign)
+                && plan.decision == Decision::StopForSign
+                && (line - sign).abs() < 6.0
+            {
+                assert!(
+                    (at - (line - front - 0.5)).abs() < 1e-9,
+                    "{at} vs line {line}"
+                );
+            }
+        }
+    }
+    assert!(stops >= 4, "stopping plans: {stops} of 8");
+}

@@ -113,3 +113,35 @@ fn a_traffic_light_deficit_changes_the_red_light_behaviour_and_rco_changes_it_ag
     assert_eq!(cl["configurations"].as_array().unwrap().len(), 3);
     assert!(cl["configurations"][0]["driving_score"].is_number());
 }
+
+#[test]
+fn one_route_of_the_suite_and_the_baseline_alone() {
+    // `routes` picks routes of the suite: the record is the one the whole suite gives.
+    let all = experiment(tiny_suite(2, 140.0), vec![Config::no_deficit()], 11);
+    let whole = run_experiment(&all, 2, &|_, _| {}).unwrap();
+    let one = fogline_sim::experiment::ExperimentParams {
+        routes: Some(vec![1]),
+        ..all.clone()
+    };
+    let picked = run_experiment(&one, 1, &|_, _| {}).unwrap();
+    assert_eq!(picked.records.len(), 1);
+    assert_eq!(picked.records[0].route, 1);
+    let same = whole.records.iter().find(|r| r.route == 1).unwrap();
+    assert_eq!(comparable(&picked.records[0]), comparable(same));
+    // Only the baseline ran: its table has one column, with figures in it.
+    let md = fogline_sim::output::markdown(&picked);
+    assert!(md.contains("| Experiment | Metric | All routes |"), "{md}");
+    let rc = md
+        .lines()
+        .find_map(|l| l.strip_prefix("| No deficit | RC | "))
+        .unwrap_or_else(|| panic!("{md}"));
+    assert!(rc.starts_with(|c: char| c.is_ascii_digit()), "{md}");
+    assert!(!md.contains("(no configuration of this table ran)"), "{md}");
+    // A route the suite does not have is an error naming it.
+    let bad = fogline_sim::experiment::ExperimentParams {
+        routes: Some(vec![5]),
+        ..all
+    };
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("route 5") && e.contains("2 route(s)"), "{e}");
+}

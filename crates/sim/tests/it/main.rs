@@ -49,6 +49,7 @@ pub fn experiment(suite: SuiteParams, configs: Vec<Config>, seed: u64) -> Experi
         run: RunParams::default(),
         system_time_limit_s: 1800.0,
         llm_latency_ms: Some(1000.0),
+        routes: None,
     }
 }
 
