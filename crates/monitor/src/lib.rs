@@ -118,7 +118,13 @@ pub fn estimate_noise(
                 &rgb[c - 3..c + 6],
                 &rgb[c + stride - 3..c + stride + 6],
             );
-            if a.iter().chain(m).chain(d).any(|&q| q == 0 || q == 255) {
+            // 0 and 255 are the bytes that wrap to 255 and 254 less one (no early exit:
+            // the 27 comparisons are vectorised).
+            let extreme = |row: &[u8]| {
+                row.iter()
+                    .fold(false, |e, &q| e | (q.wrapping_sub(1) >= 254))
+            };
+            if extreme(a) | extreme(m) | extreme(d) {
                 clipped += 1;
             } else {
                 for ch in 0..3 {

@@ -12,7 +12,8 @@
 
 use crate::vision::{
     LampColour, Refs, Rgb, Sample, Smoothed, View, chroma, gain_of, is_object, is_road,
-    is_sign_red, is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance, round_px,
+    is_sign_red, is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance, round_exact,
+    round_pos, round_px,
 };
 use fogline_types::clip::{CameraId, EgoPose, PlannerInput};
 
@@ -282,7 +283,7 @@ impl RoadModel {
     /// The references at distance `x`.
     #[inline]
     pub fn refs(&self, x: f64) -> Refs {
-        let i = ((x - self.x0) / Self::STEP).round().max(0.0) as usize;
+        let i = round_pos(((x - self.x0) / Self::STEP).max(0.0));
         Refs {
             road: self.cols[i.min(self.cols.len() - 1)],
             gain: self.gain,
@@ -1366,11 +1367,14 @@ fn lead_motion(
             continue;
         };
         // Mean squared colour difference with the face at `x`, `dy` beside where it was
-        // (following the lane); `None` when too few samples are in the frame.
-        let cost = |x: f64, dy: f64, stride: usize| -> Option<f64> {
+        // (following the lane); `None` when too few samples are in the frame, or as soon
+        // as the cost is sure to exceed `bound` (the sum only grows, and at most every
+        // sample is read: the partial sum over that count bounds the mean from below).
+        let cost = |x: f64, dy: f64, stride: usize, bound: f64| -> Option<f64> {
             let plane = view.plane(x, centre(x) + dy, pose);
+            let most = template.len().div_ceil(stride) as f64;
             let (mut sum, mut n) = (0.0f64, 0usize);
-            for &(y, z, c) in template.iter().step_by(stride) {
+            for (i, &(y, z, c)) in template.iter().step_by(stride).enumerate() {
                 if let Some((u, v)) = plane.uv(y, z)
                     && let Some(d) = then.bilinear(u, v)
                 {
@@ -1378,17 +1382,25 @@ fn lead_motion(
                     sum += f64::from(e);
                     n += 1;
                 }
+                if i % 16 == 15 && sum / most > bound {
+                    return None;
+                }
             }
             (n * stride * 10 >= template.len() * 7).then(|| sum / n as f64)
         };
         // A coarse grid over both (on every third sample), then along the lane, across it
-        // and along again from its best cell.
+        // and along again from its best cell. The grid's cells are read in order and the
+        // first least one wins; a cell is given up once it is sure to cost more than the
+        // best so far or than the prior's own cell (read first), which cannot change the
+        // winner and saves most of the reads.
         let mut cell = None;
         let (nx, ny) = ((x_half / 0.2).round() as i32, (y_half / 0.1).round() as i32);
+        let at_prior = cost(x_prior, y_prior, 3, f64::INFINITY).unwrap_or(f64::INFINITY);
         for i in -nx..=nx {
             for j in -ny..=ny {
                 let (x, y) = (x_prior + 0.2 * f64::from(i), y_prior + 0.1 * f64::from(j));
-                if let Some(c) = cost(x, y, 3)
+                let bound = cell.map_or(at_prior, |(_, _, b): (f64, f64, f64)| b.min(at_prior));
+                if let Some(c) = cost(x, y, 3, bound)
                     && cell.is_none_or(|(_, _, b)| c < b)
                 {
                     cell = Some((x, y, c));
@@ -1396,11 +1408,12 @@ fn lead_motion(
             }
         }
         let Some((x, dy, _)) = cell else { continue };
-        let Some(x) = best_match(&|x| cost(x, dy, 1), x, 0.4, 0.1) else {
+        let full = |x, dy| cost(x, dy, 1, f64::INFINITY);
+        let Some(x) = best_match(&|x| full(x, dy), x, 0.4, 0.1) else {
             continue;
         };
-        let dy = best_match(&|y| cost(x, y, 1), dy, 0.2, 0.05).unwrap_or(dy);
-        let x = best_match(&|x| cost(x, dy, 1), x, 0.2, 0.05).unwrap_or(x);
+        let dy = best_match(&|y| full(x, y), dy, 0.2, 0.05).unwrap_or(dy);
+        let x = best_match(&|x| full(x, dy), x, 0.2, 0.05).unwrap_or(x);
         ts.push(t);
         xs.push(x);
         ys.push(dy);
@@ -1597,12 +1610,12 @@ fn strip_mean(eyes: &Eyes<'_>, x: f64, y0: f64, y1: f64, dep: f64) -> Option<Sam
     let rows = (view.calib.fy * view.calib.z_m * dep / (x * x)).max(1.0);
     let v = 0.5 * (va + vb);
     let (u0, u1) = (ua.min(ub), ua.max(ub));
-    let y0p = (v - rows / 2.0).round() as isize;
+    let y0p = round_exact(v - rows / 2.0);
     view.rect_sample(
-        u0.round() as isize,
+        round_exact(u0),
         y0p,
-        u1.round() as isize,
-        y0p + rows.round().max(1.0) as isize,
+        round_exact(u1),
+        y0p + round_pos(rows).max(1) as isize,
     )
 }
 
@@ -1830,5 +1843,51 @@ mod tests {
         let scattered = [nan, 12.0, 25.0, 40.0, 55.0, nan];
         assert_eq!(road_end(&scattered, &left), None);
         assert_eq!(road_end(&[nan, nan], &[]), None);
+    }
+
+    #[test]
+    fn rounding_and_summed_areas_agree_with_the_plain_ways() {
+        // Half away from zero exactly, where `x + 0.5` would not be.
+        for x in [
+            0.0,
+            0.49999999999999994,
+            0.5,
+            1.5,
+            2.4999999999999996,
+            2.5,
+            7.25,
+            1e15 + 0.5,
+            4503599627370497.0,
+        ] {
+            assert_eq!(round_pos(x), x.round() as usize, "{x}");
+        }
+        assert_eq!(round_pos(f64::NAN), 0);
+        for x in [
+            -0.5,
+            -0.49999999999999994,
+            -2.5,
+            -7.75,
+            3.5,
+            -1e15 - 0.5,
+            0.0,
+            -0.0,
+        ] {
+            assert_eq!(round_exact(x), x.round() as isize, "{x}");
+        }
+        assert_eq!(round_exact(f64::NAN), 0);
+        assert_eq!(round_exact(1e300), isize::MAX);
+        // A summed-area table's patch means equal the pixels summed directly.
+        let calib = fogline_types::clip::CameraCalib::standard(CameraId::FrontWide, 23, 11);
+        let rgb: Vec<u8> = (0..23 * 11 * 3).map(|i| (i * 37 % 251) as u8).collect();
+        let plain = View::plain(&calib, &rgb, Some(0.0));
+        let pooled = View::plain(&calib, &rgb, Some(0.0)).pooled();
+        for (x0, y0, x1, y1) in [
+            (0, 0, 23, 11),
+            (3, 2, 9, 7),
+            (-4, 5, 30, 6),
+            (22, 10, 23, 11),
+        ] {
+            assert_eq!(plain.rect(x0, y0, x1, y1), pooled.rect(x0, y0, x1, y1));
+        }
     }
 }

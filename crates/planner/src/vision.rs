@@ -41,6 +41,8 @@ thread_local! {
     /// Summed-area tables are large (2.2 MB at 576 × 320): their buffers are reused per
     /// thread instead of being allocated, zeroed and faulted in for every frame.
     static SAT_BUFFERS: std::cell::RefCell<Vec<Vec<u32>>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// The column sums a summed-area table is built from (one row of them).
+    static COLUMN_SUMS: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 impl Drop for View<'_> {
@@ -77,24 +79,29 @@ impl<'a> View<'a> {
         // 0 as zeros), so it is not cleared (2.2 MB per frame at 576 × 320).
         sat.resize(stride * (h + 1), 0);
         sat[..stride].fill(0);
+        // Column sums down to the current row (vectorised), then their running sums along
+        // the row: one dependent add per entry.
+        let mut cols = COLUMN_SUMS.with(|c| std::mem::take(&mut *c.borrow_mut()));
+        cols.clear();
+        cols.resize(w * 3, 0);
         for y in 0..h {
             let row = &rgb[y * w * 3..(y + 1) * w * 3];
-            let (prev, cur) = sat[y * stride..(y + 2) * stride].split_at_mut(stride);
+            for (c, &p) in cols.iter_mut().zip(row) {
+                *c += u32::from(p);
+            }
+            let cur = &mut sat[(y + 1) * stride..(y + 2) * stride];
             cur[..3].fill(0);
-            // The row's running sums, then the table's row above added (vectorised).
             let (mut r, mut g, mut b) = (0u32, 0u32, 0u32);
-            for (dst, px) in cur[3..].chunks_exact_mut(3).zip(row.chunks_exact(3)) {
-                r += u32::from(px[0]);
-                g += u32::from(px[1]);
-                b += u32::from(px[2]);
+            for (dst, c) in cur[3..].chunks_exact_mut(3).zip(cols.chunks_exact(3)) {
+                r += c[0];
+                g += c[1];
+                b += c[2];
                 dst[0] = r;
                 dst[1] = g;
                 dst[2] = b;
             }
-            for (d, p) in cur.iter_mut().zip(prev.iter()) {
-                *d += *p;
-            }
         }
+        COLUMN_SUMS.with(|c| *c.borrow_mut() = cols);
         self.sat = sat;
         self
     }
@@ -171,11 +178,20 @@ impl<'a> View<'a> {
             return Some((self.uncensor(out), n));
         }
         let stride = (self.width() + 1) * 3;
-        for c in 0..3 {
-            let s = self.sat[y1 * stride + x1 * 3 + c] + self.sat[y0 * stride + x0 * 3 + c]
-                - self.sat[y0 * stride + x1 * 3 + c]
-                - self.sat[y1 * stride + x0 * 3 + c];
-            out[c] = s as f32 / n as f32;
+        // The four corners' entries, one bounds check each.
+        let corner = |y: usize, x: usize| -> &[u32; 3] {
+            let i = y * stride + x * 3;
+            self.sat[i..i + 3].try_into().unwrap_or(&[0; 3])
+        };
+        let (a, b, c, d) = (
+            corner(y1, x1),
+            corner(y0, x0),
+            corner(y0, x1),
+            corner(y1, x0),
+        );
+        for k in 0..3 {
+            let s = a[k] + b[k] - c[k] - d[k];
+            out[k] = s as f32 / n as f32;
         }
         Some((self.uncensor(out), n))
     }
@@ -308,6 +324,33 @@ pub fn round_px(x: f64) -> isize {
     }
 }
 
+/// `x.round() as isize` (half away from zero, exactly) without the library call; the
+/// fraction `x − trunc(x)` is exact in floating point. Beyond ±4·10¹⁵ (never passed) it falls
+/// back to the library.
+#[inline]
+pub fn round_exact(x: f64) -> isize {
+    if x.abs() < 4.0e15 {
+        let t = x as isize;
+        let f = x - t as f64;
+        t + isize::from(f >= 0.5) - isize::from(f <= -0.5)
+    } else {
+        x.round() as isize
+    }
+}
+
+/// `x.round() as usize` for `x ≥ 0` (half away from zero, exactly), without the library
+/// call: the fraction `x − ⌊x⌋` is exact in floating point. Negative or non-finite `x`
+/// (never passed) fall back to the library.
+#[inline]
+pub fn round_pos(x: f64) -> usize {
+    if (0.0..4.0e15).contains(&x) {
+        let t = x as usize;
+        t + usize::from(x - t as f64 >= 0.5)
+    } else {
+        x.round() as usize
+    }
+}
+
 /// A patch mean and the standard deviation of its noise per channel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
@@ -330,7 +373,7 @@ pub fn pool_size(sigma: f32, kw_max: f64, kh_max: f64) -> (usize, usize) {
     let kw = (need / kh).clamp(2.0, kw_max.max(2.0));
     // Narrow limits across: make up for it along.
     let kh = (need / kw).clamp(kh, kh_max.max(2.0));
-    (kw.round() as usize, kh.round() as usize)
+    (round_pos(kw), round_pos(kh))
 }
 
 /// Luminance (mean of the channels).
