@@ -446,7 +446,8 @@ impl Summary {
                     .any(|c| c.name == r.config && c.deficit.is_some())
             })
             .map(|r| r.wall_s)
-            .sum();
+            // (`sum` of no values is −0.0, which prints as "-0.0")
+            .fold(0.0, |a, b| a + b);
         Self {
             configs,
             sweep,

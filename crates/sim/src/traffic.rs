@@ -711,17 +711,36 @@ impl Traffic {
                                 .iter()
                                 .any(|&(m, dd, s)| m == b && dd == dout && s < 9.0);
                             let conn = seg_poly(town, Seg::Conn { node: b, din, dout });
-                            let ego_in = dist(ego_pos, town.nodes[b].pos) < ZONE_M + 6.0
-                                && conn
-                                    .pts
-                                    .iter()
-                                    .any(|&p| within(p, ego_pos, 3.5 + EGO_HALF_LENGTH_M));
+                            let ego_in = ego_holds(
+                                ego_pos,
+                                ego.state.speed_mps,
+                                (n.pos, n.yaw, n.half_width_m),
+                                town.nodes[b].pos,
+                                &conn.pts,
+                            );
                             let oncoming = control == Control::Signal
                                 && turn_of(din, dout) == 1
                                 && approaching.iter().any(|&(m, di, dl, sp)| {
                                     m == b && di == (din + 2) % 4 && dl < 35.0 && sp > 1.5
                                 });
                             if busy || exit_full || ego_in || oncoming {
+                                if log::log_enabled!(log::Level::Trace)
+                                    && within(n.pos, ego_pos, 90.0)
+                                {
+                                    let by: Vec<u64> = occupancy
+                                        .iter()
+                                        .filter(|&&(m, di, do_, id)| {
+                                            m == b
+                                                && id != n.id
+                                                && town.conflicts(b, (din, dout), (di, do_))
+                                        })
+                                        .map(|o| o.3)
+                                        .collect();
+                                    log::trace!(
+                                        "truth t {t_s:.1} npc {} held at node {b}: busy {by:?} exit_full {exit_full} ego_in {ego_in} oncoming {oncoming}",
+                                        n.id
+                                    );
+                                }
                                 must_stop = true;
                             } else {
                                 n.admitted = Some(b);
@@ -906,6 +925,28 @@ impl Traffic {
     }
 }
 
+/// Whether the ego keeps a vehicle (`(position, yaw, half width)`) from entering the
+/// junction at `node` along the path `path`: the ego is ahead of it, near the junction,
+/// and on or near the path. A moving ego is given room (3.5 m beyond its half length: it
+/// may drive into the path); a standing one holds the vehicle only where its body is on
+/// the path (its half length, the vehicle's half width and 0.5 m), else both would wait
+/// for each other for good. An ego queued behind the vehicle is not in its way.
+pub fn ego_holds(
+    ego_pos: P2,
+    ego_speed_mps: f64,
+    (pos, yaw, half_width): (P2, f64, f64),
+    node: P2,
+    path: &[P2],
+) -> bool {
+    let ahead = dot(sub(ego_pos, pos), unit(yaw)) > 0.0;
+    let room = if ego_speed_mps < 0.5 {
+        EGO_HALF_LENGTH_M + half_width + 0.5
+    } else {
+        3.5 + EGO_HALF_LENGTH_M
+    };
+    ahead && dist(ego_pos, node) < ZONE_M + 6.0 && path.iter().any(|&p| within(p, ego_pos, room))
+}
+
 /// The quadrant reached when walking along a block side from quadrant `q` (along x when
 /// `along_x`): the same side of the street, the other end of the block.
 fn along(q: usize, along_x: bool) -> usize {
@@ -938,4 +979,29 @@ pub fn extent(parts: &[Part]) -> (f64, f64) {
         }
     }
     ((x1 - x0) / 2.0, (y1 - y0) / 2.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_standing_ego_holds_a_vehicle_only_where_it_stands_on_its_path() {
+        // A vehicle at its stop line at (-12, -1.75), heading +x through a junction at
+        // the origin, its path straight on along y = -1.75.
+        let path: Vec<P2> = (0..=24).map(|k| [-12.0 + k as f64, -1.75]).collect();
+        let npc = ([-14.0, -1.75], 0.0, 0.9);
+        let node = [0.0, 0.0];
+        // An ego across the path, standing or moving: held.
+        assert!(ego_holds([0.0, -1.0], 0.0, npc, node, &path));
+        assert!(ego_holds([0.0, -1.0], 5.0, npc, node, &path));
+        // An ego 5 m beside the path: room enough when it stands, not when it moves.
+        assert!(!ego_holds([-2.0, 3.25], 0.0, npc, node, &path));
+        assert!(ego_holds([-2.0, 3.25], 5.0, npc, node, &path));
+        // An ego queued behind the vehicle never holds it.
+        assert!(!ego_holds([-20.0, -1.75], 0.0, npc, node, &path));
+        assert!(!ego_holds([-20.0, -1.75], 5.0, npc, node, &path));
+        // Far from the junction: no.
+        assert!(!ego_holds([30.0, -1.75], 5.0, npc, [60.0, 0.0], &path));
+    }
 }

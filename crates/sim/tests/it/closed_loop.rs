@@ -137,6 +137,8 @@ fn one_route_of_the_suite_and_the_baseline_alone() {
         .unwrap_or_else(|| panic!("{md}"));
     assert!(rc.starts_with(|c: char| c.is_ascii_digit()), "{md}");
     assert!(!md.contains("(no configuration of this table ran)"), "{md}");
+    // No deficit run: their time is zero, not "-0.0".
+    assert!(md.contains("with a deficit took 0.0 s"), "{md}");
     // A route the suite does not have is an error naming it.
     let bad = fogline_sim::experiment::ExperimentParams {
         routes: Some(vec![5]),
