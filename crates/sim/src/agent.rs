@@ -266,7 +266,8 @@ impl Baseline {
                     (l.width_m * 10.0).round() / 10.0,
                     (l.speed * 10.0).round() / 10.0,
                     (l.right_edge * 10.0).round() / 10.0,
-                    (l.left_edge * 10.0).round() / 10.0
+                    (l.left_edge * 10.0).round() / 10.0,
+                    (l.confidence * 100.0).round() / 100.0
                 )),
                 perc.zebra,
                 perc.stop_line,

@@ -644,6 +644,24 @@ impl Traffic {
                 if b.id == n.id || !within(b.pts[1], centre, look + n.half_len_m + 8.0) {
                     continue;
                 }
+                if b.id == 0 {
+                    // The ego: the vehicle's body (0.25 m wider either side) moved along its
+                    // path against the ego's body. Discs round three points of each are
+                    // too coarse across a turn: a vehicle turning past the nose of a
+                    // standing ego would wait for it, while the ego waits for it.
+                    for &(s, p, u) in &probes {
+                        if path_body(p, u, n.half_len_m, n.half_width_m).overlaps(&ego_box)
+                            && dot(sub(ego_box.c, centre), unit(n.yaw)) >= 0.0
+                        {
+                            if s < gap {
+                                gap = s;
+                                lead_v = dot(b.vel, u).max(0.0);
+                            }
+                            break;
+                        }
+                    }
+                    continue;
+                }
                 'probe: for &(s, p, u) in &probes {
                     for q in b.pts {
                         if within(p, q, n.half_width_m + b.half_w + 0.25) {
@@ -925,6 +943,18 @@ impl Traffic {
     }
 }
 
+/// A vehicle's body with its front bumper at `front`, heading `u` (a unit vector), 0.25 m
+/// wider either side: where it would be at a point of its path, for testing against the
+/// ego's body.
+pub fn path_body(front: P2, u: P2, half_len: f64, half_width: f64) -> Obb {
+    Obb {
+        c: add(front, u, -half_len),
+        yaw: u[1].atan2(u[0]),
+        hl: half_len,
+        hw: half_width + 0.25,
+    }
+}
+
 /// Whether the ego keeps a vehicle (`(position, yaw, half width)`) from entering the
 /// junction at `node` along the path `path`: the ego is ahead of it, near the junction,
 /// and on or near the path. A moving ego is given room (3.5 m beyond its half length: it
@@ -1003,5 +1033,33 @@ mod tests {
         assert!(!ego_holds([-20.0, -1.75], 5.0, npc, node, &path));
         // Far from the junction: no.
         assert!(!ego_holds([30.0, -1.75], 5.0, npc, [60.0, 0.0], &path));
+    }
+
+    #[test]
+    fn a_vehicle_turning_past_a_standing_egos_nose_is_not_held_by_it() {
+        // The ego stands at the origin heading +x; its nose is 2.45 m ahead of its centre.
+        let ego = Obb {
+            c: [0.0, 0.0],
+            yaw: 0.0,
+            hl: EGO_HALF_LENGTH_M,
+            hw: EGO_HALF_WIDTH_M,
+        };
+        // A car (2.3 × 0.9 m half sizes) crossing in front of it, heading -y, its front
+        // bumper 3.8 m ahead of the ego's centre and 1.2 m left of it: its body (with the
+        // 0.25 m margin) spans x 2.65–4.95 m, clear of the ego's nose at 2.45 m, though a
+        // disc of 2.1 m round its front point reaches the nose.
+        let front = [3.8, 1.2];
+        let body = path_body(front, [0.0, -1.0], 2.3, 0.9);
+        assert_eq!(body.c, [3.8, 3.5]);
+        assert!(!body.overlaps(&ego));
+        assert!(within(
+            front,
+            [EGO_HALF_LENGTH_M, 0.0],
+            0.9 + EGO_HALF_WIDTH_M + 0.25
+        ));
+        // With its front at (3.4, 0.5) its body spans x 2.25–4.55 m and y 0.5–5.1 m: over
+        // the ego's nose.
+        let closer = path_body([3.4, 0.5], [0.0, -1.0], 2.3, 0.9);
+        assert!(closer.overlaps(&ego));
     }
 }
