@@ -1400,7 +1400,14 @@ fn lead_motion(
             for j in -ny..=ny {
                 let (x, y) = (x_prior + 0.2 * f64::from(i), y_prior + 0.1 * f64::from(j));
                 let bound = cell.map_or(at_prior, |(_, _, b): (f64, f64, f64)| b.min(at_prior));
-                if let Some(c) = cost(x, y, 3, bound)
+                // The prior's own cell was read already (and is never given up: its cost
+                // bounds the rest).
+                let read = if (i, j) == (0, 0) {
+                    at_prior.is_finite().then_some(at_prior)
+                } else {
+                    cost(x, y, 3, bound)
+                };
+                if let Some(c) = read
                     && cell.is_none_or(|(_, _, b)| c < b)
                 {
                     cell = Some((x, y, c));
