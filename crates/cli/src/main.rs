@@ -204,6 +204,9 @@ struct DemoArgs {
     /// Seed.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Skip the quick closed loop (no deficit; each deficit with and without RCO).
+    #[arg(long)]
+    no_closed_loop: bool,
 }
 
 fn main() -> ExitCode {
@@ -562,6 +565,36 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
     );
     let w = write_outputs(&env, &table, &a.out)?;
     print_summary(&env, &w, false)?;
+    if !a.no_closed_loop {
+        // The closed loop: the quick suite, no deficit and each deficit with and without
+        // the override; its table joins the report.
+        let dir = a.out.join("closed-loop");
+        let t2 = std::time::Instant::now();
+        log::info!(
+            "demo: the quick closed loop (2 towns x 2 routes; no deficit, each deficit with and without RCO)"
+        );
+        let results = sim_cmd::quick_closed_loop(a.seed, &dir)?;
+        report_cmd::write_report_with(&env, Some(&table), Some(&dir), &w.report)?;
+        let mut out = std::io::stdout().lock();
+        writeln!(
+            out,
+            "closed loop ({} runs in {:.1} s): driving score, mean of the routes",
+            results.records.len(),
+            t2.elapsed().as_secs_f64()
+        )?;
+        for c in &results.summary.configs {
+            let m = &c.unlimited;
+            writeln!(
+                out,
+                "  {:<22} DS {:6.2}  RC {:6.2}  IS {:.3}",
+                c.config,
+                m.driving_score.by_route.mean,
+                m.route_completion.by_route.mean,
+                m.infraction_score.by_route.mean
+            )?;
+        }
+        writeln!(out, "{}", dir.display())?;
+    }
     writeln!(
         std::io::stdout().lock(),
         "demo finished in {:.1} s; everything is in {}",

@@ -74,9 +74,27 @@ pub fn report(a: ReportArgs) -> Result<ExitCode> {
 /// directory, renamed into place). `pairs`, the table the envelope was computed from, adds
 /// the L2 histogram to figure 2a. This is what `fogline envelope` and `fogline demo` call.
 pub fn write_report(envelope: &Envelope, pairs: Option<&PairTable>, out: &Path) -> Result<()> {
+    write_report_with(envelope, pairs, None, out)
+}
+
+/// [`write_report`] with the closed-loop results of `sim_dir` (its `closed_loop.json`), as
+/// `fogline demo` writes it.
+pub fn write_report_with(
+    envelope: &Envelope,
+    pairs: Option<&PairTable>,
+    sim_dir: Option<&Path>,
+    out: &Path,
+) -> Result<()> {
     let mut input = ReportInput::from_envelope(envelope)?;
     if let Some(t) = pairs {
         input = input.with_pairs(t)?;
+    }
+    if let Some(dir) = sim_dir {
+        let path = dir.join("closed_loop.json");
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let cl = ClosedLoop::from_json(&text, &path.display().to_string())?;
+        input = input.with_closed_loop(cl)?;
     }
     write_input(&input, &ReportParams::default(), out)
 }

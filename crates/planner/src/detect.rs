@@ -76,8 +76,9 @@ pub struct Detections {
     pub deficits: Vec<(CameraId, DeficitSeen)>,
 }
 
-/// Objects of `p` (from [`crate::perceive::perceive_objects`]) with their image boxes.
-pub(crate) fn objects(p: &Perception, input: &PlannerInput<'_>) -> Vec<ObjectSeen> {
+/// Objects of `p` with their image boxes: the lead in the ego lane, and the one in the lane
+/// to the left when `p` comes from [`crate::perceive::perceive_objects`].
+pub fn objects(p: &Perception, input: &PlannerInput<'_>) -> Vec<ObjectSeen> {
     let centre = |x: f64| p.lane_offset + 0.5 * p.kappa * x * x;
     let mut out = Vec::new();
     for (lane, seen, shift) in [
@@ -147,7 +148,9 @@ fn image_box(calib: &CameraCalib, corners: &[[f64; 2]; 2], height: f64) -> Optio
 /// pixels (red exceeds green and blue by 96 levels, with at least two red neighbours) whose
 /// bounding box (at least 8 × 8 pixels) has a red border (at least 60 % of its 2-pixel ring
 /// and half of each side) around a dark interior (mean luminance at most 64, at most 20 %
-/// red). A stop sign's face, a red car or a lit lamp is red *inside*, so it is
+/// red); a box too small for a fill counts when it is a solid bar of saturated red (at least
+/// 2 × 8 pixels, twice as tall as wide, at least 80 % of it red ≥ 230 with green and blue
+/// ≤ 30: a distant lamp's mask). A stop sign's face, a red car or a lit lamp is red *inside*, so it is
 /// not taken; two overlapping deficits whose outlines merge are reported as their union when
 /// the union's border still reads red, and missed otherwise.
 pub fn find_deficits(
@@ -229,6 +232,33 @@ pub fn find_deficits(
         // The smallest deficit worth reporting: a 2-pixel ring, then a 1-pixel margin, around
         // at least 2 × 2 pixels of fill.
         if x1 - x0 < 8 || y1 - y0 < 8 {
+            // Too small for a fill: an outline with no room inside (a distant lamp's mask) is
+            // a solid red bar, at least 2 px wide, 8 px tall and twice as tall as wide, red
+            // nearly throughout (a lit lamp is round, a sign's face as wide as tall).
+            let (bw, bh) = (x1 - x0, y1 - y0);
+            if bw >= 2 && bh >= 8 && bh >= 2 * bw {
+                // The outline's own red, saturated (a painted lamp or a red car's flank is
+                // lit, shaded and mixed with its surroundings).
+                let pure = |i: usize| {
+                    let p = &rgb[i * 3..i * 3 + 3];
+                    p[0] >= 230 && p[1] <= 30 && p[2] <= 30
+                };
+                let n = (y0..y1)
+                    .flat_map(|y| (x0..x1).map(move |x| y * width + x))
+                    .filter(|&i| red[i] && pure(i))
+                    .count();
+                let share = n as f64 / (bw * bh) as f64;
+                if share >= 0.8 {
+                    out.push(DeficitSeen {
+                        x0: x0 as u32,
+                        y0: y0 as u32,
+                        x1: x1 as u32,
+                        y1: y1 as u32,
+                        outline: share,
+                        fill_lum: 0.0,
+                    });
+                }
+            }
             continue;
         }
         // Each side of the ring must read red (a lamp or a sign face is round: its box's
@@ -340,6 +370,20 @@ mod tests {
         let boxes: Vec<_> = got.iter().map(|d| (d.x0, d.y0, d.x1, d.y1)).collect();
         assert_eq!(boxes, vec![(10, 10, 40, 50), (100, 60, 112, 70)]);
         assert!(got.iter().all(|d| d.outline == 1.0 && d.fill_lum == 0.0));
+    }
+
+    #[test]
+    fn a_distant_lamps_mask_is_a_solid_red_bar_and_a_lit_lamp_is_not() {
+        let (w, h) = (120, 80);
+        let mut rgb = frame(w, h, [90, 92, 96]);
+        // A mask 3 px wide and 10 tall: all outline, no room for fill.
+        paint(&mut rgb, w, (40, 10, 43, 20), |_, _| [255, 0, 0]);
+        // A lit red lamp: a 4 × 4 disc-like blob; a wide red bar (a tail lamp).
+        paint(&mut rgb, w, (80, 10, 84, 14), |_, _| [255, 0, 0]);
+        paint(&mut rgb, w, (60, 50, 76, 53), |_, _| [255, 0, 0]);
+        let got = find_deficits(&rgb, w, h).unwrap();
+        let boxes: Vec<_> = got.iter().map(|d| (d.x0, d.y0, d.x1, d.y1)).collect();
+        assert_eq!(boxes, vec![(40, 10, 43, 20)]);
     }
 
     #[test]

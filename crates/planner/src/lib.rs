@@ -83,6 +83,21 @@ impl ReferencePlanner {
         Ok(detect::Detections { objects, deficits })
     }
 
+    /// Plans knowing which pixels are lost (deficit regions, e.g. from
+    /// [`detect::find_deficits`]): a lamp or a sign read inside a lost region does not count.
+    /// An override that has recognised a deficit drives the planner this way; a planner
+    /// that is not told keeps reading what the pixels show.
+    pub fn plan_knowing(
+        &self,
+        input: &PlannerInput<'_>,
+        lost: &[perceive::Lost],
+    ) -> Result<(Perception, plan::Plan), PlannerError> {
+        validate(input)?;
+        let p = perceive::perceive_knowing(input, lost);
+        let plan = plan::plan(&p);
+        Ok((p, plan))
+    }
+
     /// Plans and returns the perception behind the plan (for inspection and tests).
     pub fn plan_with_perception(
         &self,

@@ -358,16 +358,37 @@ fn earlier<'a>(
 
 /// Runs every perception step on `input`.
 pub fn perceive(input: &PlannerInput<'_>) -> Perception {
-    perceive_with(input, false)
+    perceive_with(input, false, &[])
 }
 
 /// [`perceive`], and the nearest object in the lane to the left as well
 /// ([`Perception::left_object`]; planning does not need it, so [`perceive`] skips it).
 pub fn perceive_objects(input: &PlannerInput<'_>) -> Perception {
-    perceive_with(input, true)
+    perceive_with(input, true, &[])
 }
 
-fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
+/// A region of one camera's latest frame that the perception knows it lost (a deficit:
+/// [`crate::detect::find_deficits`] finds them), `[x0, y0, x1, y1]` in pixels.
+pub type Lost = (CameraId, [f64; 4]);
+
+/// [`perceive`] knowing which pixels are lost: a lamp or a sign face read inside a lost
+/// region is no reading (a deficit's red outline is not a red lamp). Without lost regions
+/// it equals [`perceive`].
+pub fn perceive_knowing(input: &PlannerInput<'_>, lost: &[Lost]) -> Perception {
+    perceive_with(input, false, lost)
+}
+
+/// Whether `(u, v)` of `camera`'s latest frame lies in or next to a lost region: within
+/// half the region's larger side (at least 2 pixels) of it. Pixels at a lost region's edge
+/// belong to what it hides (a lamp half out of a mask, the outline's blur).
+fn in_lost(lost: &[Lost], camera: CameraId, u: f64, v: f64) -> bool {
+    lost.iter().any(|(c, b)| {
+        let m = (0.5 * (b[2] - b[0]).max(b[3] - b[1])).max(2.0);
+        *c == camera && u >= b[0] - m && u <= b[2] + m && v >= b[1] - m && v <= b[3] + m
+    })
+}
+
+fn perceive_with(input: &PlannerInput<'_>, left_object: bool, lost: &[Lost]) -> Perception {
     let (speed, kappa_history) = history_motion(input.ego_history);
     // A summed-area table pays off only where patches grow large, on noisy frames; clean
     // frames are read through small patches summed directly.
@@ -535,8 +556,8 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool) -> Perception {
         }
         l
     });
-    let light = traffic_light(&eyes);
-    let stop_sign = stop_sign(&eyes, gain);
+    let light = traffic_light(&eyes, lost);
+    let stop_sign = stop_sign(&eyes, gain, lost);
     let left_object = left_object
         .then(|| {
             let left_centre = |x: f64| centre(x) + lane_width;
@@ -1678,7 +1699,7 @@ fn lamp_blocks(
 
 /// Lit lamps above the horizon: the colour with the most lamp pixels in one compact
 /// cluster, and a distance from the lamp's elevation (signal heads hang about 5 m up).
-fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
+fn traffic_light(eyes: &Eyes<'_>, lost: &[Lost]) -> Option<(Lamp, f64)> {
     for view in [&eyes.tele, &eyes.wide].into_iter().flatten() {
         let cy = view.calib.cy;
         let top = (cy - 2.0).max(0.0) as usize;
@@ -1690,7 +1711,8 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
         let first = (cy - rows_up).max(0.0) as usize;
         let (k, blocks) = lamp_blocks(view, (lo, hi), (first, top), 3);
         let reach = 6usize.max(2 * k);
-        // The largest compact cluster of each colour: (pixels, mean row).
+        // The largest compact cluster of each colour outside the lost regions: (pixels, mean
+        // row).
         let compact = |col: LampColour| -> (usize, f64) {
             let pts: Vec<(usize, usize)> = blocks
                 .iter()
@@ -1704,8 +1726,17 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
                     .filter(|p| p.0.abs_diff(u0) <= reach && p.1.abs_diff(v0) <= reach)
                     .collect();
                 if near.len() * k * k > best.0 {
+                    let half = k as f64 / 2.0;
                     let vm = near.iter().map(|p| p.1 as f64).sum::<f64>() / near.len() as f64
-                        + k as f64 / 2.0;
+                        + half;
+                    if !lost.is_empty() {
+                        let um = near.iter().map(|p| p.0 as f64).sum::<f64>()
+                            / near.len() as f64
+                            + half;
+                        if in_lost(lost, view.calib.id, um, vm) {
+                            continue;
+                        }
+                    }
                     best = (near.len() * k * k, vm);
                 }
             }
@@ -1734,7 +1765,7 @@ fn traffic_light(eyes: &Eyes<'_>) -> Option<(Lamp, f64)> {
 
 /// A stop sign: a compact patch of sign red right of centre, well above the horizon, whose
 /// width and elevation give consistent distances.
-fn stop_sign(eyes: &Eyes<'_>, gain: f32) -> Option<f64> {
+fn stop_sign(eyes: &Eyes<'_>, gain: f32, lost: &[Lost]) -> Option<f64> {
     for (view, min_px) in [(&eyes.tele, 12usize), (&eyes.wide, 8usize)] {
         let Some(view) = view else { continue };
         let (cx, cy) = (view.calib.cx, view.calib.cy);
@@ -1810,7 +1841,7 @@ fn stop_sign(eyes: &Eyes<'_>, gain: f32) -> Option<f64> {
         // Signs stand beside the road: its centre must be well right of the lane.
         let u_mid = 0.5 * (u0 + u1) as f64 + 0.5;
         let lateral = -(u_mid - cx) * d / view.calib.fx;
-        if lateral > -2.0 {
+        if lateral > -2.0 || in_lost(lost, view.calib.id, u_mid, vmean) {
             continue;
         }
         return Some(d + view.calib.x_m);

@@ -10,7 +10,7 @@
 //!    (no change since the previous tick, same counts as when the plan was made; a plan made
 //!    this tick is consistent by construction) and every view in the state `C_t` names. If it
 //!    holds, `A_t` runs and leaves the sequence (equation 2). Wait steps of a
-//!    stop-observe-move only need consistency; its final move trigger, once it holds, starts
+//!    stop-observe-move (standing still) run unchecked; its final move trigger, once it holds, starts
 //!    a new round of motion planning (`move`), and while it does not the ego holds still
 //!    (after `max_hold_ticks` a full replan).
 //! 5. **Plan** when `S_t` is empty or the verifier refused (equation 1): hazard inference
@@ -570,10 +570,14 @@ impl Rco {
             } else {
                 verifier::check_consistency(&self.plan_counts, &assessment)
             };
+            // Standing still is safe whatever the deficits do: the wait steps and the hold
+            // before the move trigger run without the consistency check (a change there
+            // would only restart the observation); the trigger's own states decide the move.
             let verdict = match (head.kind, &head.condition) {
                 (Kind::Move, Some(c)) if verify => {
                     consistency.and_then(|()| verifier::check_states(c, &assessment))
                 }
+                (Kind::Wait | Kind::Trigger, _) => Ok(()),
                 _ => consistency,
             };
             if let Err(r) = verdict {

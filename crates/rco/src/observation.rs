@@ -9,7 +9,7 @@
 use std::fmt;
 use std::sync::Arc;
 
-use fogline_types::clip::CameraId;
+use fogline_types::clip::{CameraCalib, CameraId};
 use serde::{Deserialize, Serialize};
 
 use crate::RcoError;
@@ -143,6 +143,11 @@ pub struct View {
     /// The traffic objects the detector still sees.
     #[serde(default)]
     pub objects: Vec<TrafficObject>,
+    /// The camera's calibration, when known: hazard inference then places a region's ground
+    /// contact on the road ([`View::ground_point`]) and measures its motion over the ground,
+    /// the ego's own motion removed. Without it, motion is read in image space.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calib: Option<CameraCalib>,
 }
 
 impl fmt::Debug for View {
@@ -168,7 +173,28 @@ impl View {
             rgb: None,
             deficits: Vec::new(),
             objects: Vec::new(),
+            calib: None,
         }
+    }
+
+    /// Where the pixel `(u, v)` meets a flat road, in the rig frame (`x` ahead of the rear
+    /// axle, `y` left, m), from [`View::calib`]; `None` without a calibration or for a pixel
+    /// at or above the horizon (its ray never meets the road within 200 m).
+    pub fn ground_point(&self, u: f64, v: f64) -> Option<[f64; 2]> {
+        let c = self.calib.as_ref()?;
+        let [f, r, d] = c.axes();
+        let (a, b) = ((u - c.cx) / c.fx, (v - c.cy) / c.fy);
+        let ray = [
+            f[0] + a * r[0] + b * d[0],
+            f[1] + a * r[1] + b * d[1],
+            f[2] + a * r[2] + b * d[2],
+        ];
+        if ray[2] >= -1e-6 {
+            return None;
+        }
+        let t = c.z_m / -ray[2];
+        let p = [c.x_m + t * ray[0], c.y_m + t * ray[1]];
+        (t.is_finite() && p[0].hypot(p[1]) <= 200.0).then_some(p)
     }
 
     /// Image area, px².
@@ -205,6 +231,16 @@ impl View {
         for (i, o) in self.objects.iter().enumerate() {
             o.rect
                 .check(&format!("view {cam}, object {i} ({})", o.class))?;
+        }
+        if let Some(c) = &self.calib {
+            let finite = [c.fx, c.fy, c.cx, c.cy, c.x_m, c.y_m, c.z_m, c.yaw_rad, c.pitch_rad]
+                .iter()
+                .all(|v| v.is_finite());
+            if !finite || c.fx <= 0.0 || c.fy <= 0.0 || c.z_m <= 0.0 {
+                return Err(format!(
+                    "view {cam}: calib needs finite numbers, positive focal lengths and a camera above the road (z_m > 0)"
+                ));
+            }
         }
         Ok(())
     }

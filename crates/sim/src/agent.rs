@@ -44,7 +44,8 @@
 //! gets the route as CARLA agents get their global plan.
 
 use fogline_planner::ReferencePlanner;
-use fogline_planner::perceive::{LeadSeen, ObjectKind};
+use fogline_planner::detect::ObjectSeen;
+use fogline_planner::perceive::{LeadSeen, Lost, ObjectKind};
 use fogline_types::clip::{CameraInput, Decision, EgoPose, PlannerInput};
 use fogline_types::motion::EGO_FRONT_M;
 use serde::{Deserialize, Serialize};
@@ -137,7 +138,22 @@ pub struct Baseline {
     red_stop_at_m: Option<f64>,
     sign_stop_at_m: Option<f64>,
     lead_memory: LeadMemory,
+    hidden_signal: bool,
+    lost: Vec<Lost>,
+    /// The stop at the line is for a hidden signal (it ends only once cross traffic has
+    /// stopped passing).
+    hidden_stop: bool,
+    /// Seconds since a vehicle was last seen crossing the ego's path ahead.
+    cross_quiet_s: f64,
+    objects: Vec<ObjectSeen>,
 }
+
+/// At a hidden signal the car goes only after no vehicle has crossed its path ahead for
+/// this long (the cross street's green has ended), s.
+pub const HIDDEN_SIGNAL_QUIET_S: f64 = 4.0;
+
+/// A hidden signal's stop line farther than this is not stopped for yet, m.
+pub const HIDDEN_SIGNAL_REACH_M: f64 = 30.0;
 
 /// A crossing the planner sees closer than this caps the speed at `zebra_mps`, m.
 pub const ZEBRA_CAUTION_M: f64 = 20.0;
@@ -172,7 +188,36 @@ impl Baseline {
             red_stop_at_m: None,
             sign_stop_at_m: None,
             lead_memory: LeadMemory::default(),
+            hidden_signal: false,
+            lost: Vec::new(),
+            hidden_stop: false,
+            cross_quiet_s: 0.0,
+            objects: Vec::new(),
         }
+    }
+
+    /// Tells the agent whether a traffic light or sign ahead is hidden in a region its
+    /// perception lost (the override's hazard inference says so). While it is, the agent
+    /// reads no lamp state (the lamp it sees may be the mask) and treats the junction as an
+    /// all-way stop, as drivers treat a dark signal: it stops at the stop line it perceives
+    /// (or where it would stop for the light), waits as at a stop sign, then proceeds.
+    pub fn set_hidden_signal(&mut self, hidden: bool) {
+        if hidden && !self.hidden_signal {
+            self.red_stop_at_m = None;
+        }
+        self.hidden_signal = hidden;
+    }
+
+    /// Tells the agent which regions of its latest frames are lost (the override recognised
+    /// them as deficits): its lamp and sign readers ignore them. Empty when nobody knows.
+    pub fn set_lost(&mut self, lost: Vec<Lost>) {
+        self.lost = lost;
+    }
+
+    /// The road users found at the last planning step, with their boxes in the frames (the
+    /// perception's pixel-based detections).
+    pub fn objects(&self) -> &[ObjectSeen] {
+        &self.objects
     }
 
     /// The last intent.
@@ -241,11 +286,12 @@ impl Baseline {
         };
         let p = &self.params;
         let cruise = p.cruise_mps.min(turn_cap_mps);
-        let out = self.planner.plan_with_perception(&pin);
+        let out = self.planner.plan_knowing(&pin, &self.lost);
         let (perc, plan) = match out {
             Ok(x) => x,
             Err(_) => {
                 self.plan_errors += 1;
+                self.objects.clear();
                 self.intent = Intent {
                     decision: None,
                     target_mps: 0.0,
@@ -281,7 +327,37 @@ impl Baseline {
                 perc.road_lum
             );
         }
+        self.objects = fogline_planner::detect::objects(&perc, &pin);
+        // Cross traffic: a vehicle ahead moving across the ego's path.
+        let crossing = perc.lead.is_some_and(|l| {
+            l.kind == ObjectKind::Vehicle && l.contact_x < 40.0 && l.lateral_speed.abs() > 1.0
+        });
+        self.cross_quiet_s = if crossing {
+            0.0
+        } else {
+            self.cross_quiet_s + 0.1 * speed_scale
+        };
         let mut decision = plan.decision;
+        let mut planned_stop = plan.stop_at;
+        if self.hidden_signal {
+            // The lamp or sign sits in a lost region: its reading is no evidence. An unknown
+            // signal is an all-way stop at the line.
+            self.red_stop_at_m = None;
+            let line = match decision {
+                Decision::StopForRedLight | Decision::StopForSign => plan.stop_at,
+                _ => perc.stop_line.map(|l| l - EGO_FRONT_M - 0.5),
+            };
+            if let Some(at) = line.filter(|&a| a < HIDDEN_SIGNAL_REACH_M) {
+                decision = Decision::StopForSign;
+                planned_stop = Some(at);
+                self.hidden_stop = true;
+            } else if matches!(
+                decision,
+                Decision::StopForRedLight | Decision::StopForSign | Decision::ProceedOnGreen
+            ) {
+                decision = Decision::KeepLane;
+            }
+        }
         if decision == Decision::StopForSign && odometer_m < self.sign_free_until_m {
             decision = Decision::KeepLane;
         }
@@ -291,7 +367,7 @@ impl Baseline {
         let stop_dist = || {
             // The perceived stop point (the trajectory's end falls short of it when the
             // horizon is short: standing still, it is where the car stands).
-            let planned = plan.stop_at.map_or_else(
+            let planned = planned_stop.map_or_else(
                 || plan.trajectory.xy.last().map_or(0.0, |q| q[0].hypot(q[1])),
                 |d| d.max(0.0),
             );
@@ -329,6 +405,7 @@ impl Baseline {
         }
         if self.sign_stop_at_m.is_some_and(|m| odometer_m > m + 1.0) {
             self.sign_stop_at_m = None;
+            self.hidden_stop = false;
         }
         let mut stop_at = None;
         let target = match decision {
@@ -400,7 +477,9 @@ impl Baseline {
             let at_sign = self.sign_stop_at_m.is_some_and(|m| odometer_m > m - 3.0);
             if at_sign {
                 self.sign_stop_s += dt;
-                if self.sign_stop_s >= 1.5 {
+                let clear = !self.hidden_stop || self.cross_quiet_s >= HIDDEN_SIGNAL_QUIET_S;
+                if self.sign_stop_s >= 1.5 && clear {
+                    self.hidden_stop = false;
                     self.sign_free_until_m = odometer_m + p.sign_memory_m;
                     self.sign_stop_at_m = None;
                     self.sign_stop_s = 0.0;

@@ -316,11 +316,73 @@ pub struct SweepRow {
     pub delta_unlimited: [f64; 3],
 }
 
+/// The paired per-route difference of the driving score (unlimited game time), the
+/// override's configuration minus the same deficit without it: the routes (and seeds) are
+/// the same, so each route is its own control.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairedDiff {
+    /// The deficit.
+    pub deficit: DeficitKind,
+    /// The configuration with the override.
+    pub config: String,
+    /// The configuration without it.
+    pub baseline: String,
+    /// Routes × seeds paired.
+    pub pairs: usize,
+    /// Mean of the per-route differences (DS points).
+    pub mean: f64,
+    /// The 95 % percentile bootstrap interval of the mean ([`BOOTSTRAP_RESAMPLES`]
+    /// resamples of the pairs, seeded by [`BOOTSTRAP_SEED`]; numpy-linear percentiles).
+    pub ci95: [f64; 2],
+    /// Collisions (vehicles, pedestrians, layout) per km driven: without, with the override.
+    pub collisions_per_km: [f64; 2],
+}
+
+/// Resamples of the paired bootstrap.
+pub const BOOTSTRAP_RESAMPLES: usize = 10_000;
+/// The paired bootstrap's seed (fixed: the interval is a function of the records).
+pub const BOOTSTRAP_SEED: u64 = 0x5EED_0017;
+
+/// The mean of `d` and its 95 % percentile bootstrap interval (`resamples` resamples with
+/// replacement, drawn from `seed`; numpy's linear percentile of the sorted resample means).
+/// `None` for no data.
+pub fn paired_bootstrap(d: &[f64], resamples: usize, seed: u64) -> Option<(f64, [f64; 2])> {
+    if d.is_empty() || resamples == 0 {
+        return None;
+    }
+    let n = d.len();
+    let mean = d.iter().sum::<f64>() / n as f64;
+    let mut rng = fogline_stats::seed::Xoshiro256pp::new(seed, &[n as u64]);
+    let mut means: Vec<f64> = (0..resamples)
+        .map(|_| {
+            let mut sum = 0.0;
+            for _ in 0..n {
+                // An index uniform on 0..n (multiply-high: no modulo bias worth the name).
+                let i = ((u128::from(rng.next_u64()) * n as u128) >> 64) as usize;
+                sum += d[i];
+            }
+            sum / n as f64
+        })
+        .collect();
+    means.sort_by(f64::total_cmp);
+    let pct = |q: f64| {
+        let pos = q * (means.len() - 1) as f64;
+        let lo = pos.floor() as usize;
+        let hi = pos.ceil() as usize;
+        means[lo] + (means[hi] - means[lo]) * (pos - lo as f64)
+    };
+    Some((mean, [pct(0.025), pct(0.975)]))
+}
+
 /// Everything the tables show.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     /// Per configuration, in the order given.
     pub configs: Vec<ConfigSummary>,
+    /// The override against no override under each deficit, paired by route (configurations
+    /// with the full override and the default step limit).
+    #[serde(default)]
+    pub paired: Vec<PairedDiff>,
     /// The step-limit sweep (figure 8), when its configurations ran.
     pub sweep: Vec<SweepRow>,
     /// Wall-clock seconds of the runs with a deficit (the full-suite timing), summed over
@@ -437,6 +499,62 @@ impl Summary {
                 });
             }
         }
+        let mut paired = Vec::new();
+        for k in DeficitKind::ALL {
+            let base = params
+                .configs
+                .iter()
+                .find(|c| c.deficit == Some(k) && c.rco.is_none());
+            let with = params.configs.iter().find(|c| {
+                c.deficit == Some(k)
+                    && c.rco
+                        .as_ref()
+                        .is_some_and(|r| r.modules == fogline_rco::Modules::default() && r.plan_limit == 5)
+            });
+            let (Some(base), Some(with)) = (base, with) else {
+                continue;
+            };
+            let of = |name: &str| -> BTreeMap<(u64, usize), &RouteRecord> {
+                records
+                    .iter()
+                    .filter(|r| r.config == name)
+                    .map(|r| ((r.seed, r.route), r))
+                    .collect()
+            };
+            let (b, w) = (of(&base.name), of(&with.name));
+            let d: Vec<f64> = w
+                .iter()
+                .filter_map(|(key, r)| {
+                    b.get(key)
+                        .map(|x| r.score.driving_score - x.score.driving_score)
+                })
+                .collect();
+            let Some((mean, ci95)) = paired_bootstrap(&d, BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED)
+            else {
+                continue;
+            };
+            let collisions = |name: &str| {
+                configs
+                    .iter()
+                    .find(|c| c.config == name)
+                    .map_or(0.0, |c| {
+                        c.infractions_per_km
+                            .iter()
+                            .filter(|(e, _)| e.is_collision())
+                            .map(|(_, v)| v)
+                            .sum::<f64>()
+                    })
+            };
+            paired.push(PairedDiff {
+                deficit: k,
+                config: with.name.clone(),
+                baseline: base.name.clone(),
+                pairs: d.len(),
+                mean,
+                ci95,
+                collisions_per_km: [collisions(&base.name), collisions(&with.name)],
+            });
+        }
         let deficit_runs_wall_s = records
             .iter()
             .filter(|r| {
@@ -450,6 +568,7 @@ impl Summary {
             .fold(0.0, |a, b| a + b);
         Self {
             configs,
+            paired,
             sweep,
             deficit_runs_wall_s,
         }

@@ -23,7 +23,9 @@ use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::Instant;
 
-use fogline_perturb::frame::{Frame, FrameKey, ObjectBox};
+use fogline_perturb::frame::{Frame, FrameKey};
+use fogline_planner::detect::ObjectSeen;
+use fogline_planner::perceive::{Lost, ObjectKind};
 use fogline_rco::{
     EgoState, NavDirection, Navigation, Observation, PixelBox, Rco, RoadGeometry, RoadLayout,
     Surroundings, TrafficEnv, TrafficObject, View,
@@ -41,7 +43,7 @@ use crate::score::{
     RouteCompletion, RouteDeviationMonitor, RouteScore, ScoringParams, StopSignMonitor, TimeLimits,
     route_timeout_s,
 };
-use crate::sense::{Daylight, Lens, PartsCache, Seen, Weather, look, scene_at, see};
+use crate::sense::{Daylight, Lens, PartsCache, Weather, look, scene_at, see};
 use crate::town::{Control, LANE_W_M, Light, Town, ZONE_M};
 use crate::traffic::{EgoView, Traffic, TrafficParams, ego_box};
 use crate::vehicle::{BicycleParams, VehicleControl, VehicleState, step as bike_step};
@@ -507,134 +509,161 @@ pub fn run_route(
             let te = see(&sc, &tele, &lens, key(CameraId::FrontTele));
             deficit_agent = !w.deficits.is_empty() || !te.deficits.is_empty();
             push_frame(&mut wide_frames, w.frame.clone());
-            push_frame(&mut tele_frames, te.frame);
+            let te_frame = te.frame;
+            push_frame(&mut tele_frames, te_frame.clone());
             history.push_back(ego);
             while history.len() > HISTORY {
                 history.pop_front();
             }
             parts[0] += clock.elapsed().as_secs_f64();
-            let present = deficit_agent || (rco_active && deficit_side);
+            // Take-over is decided from pixels: a lost region (black, red outline) in the
+            // override's front view, or, once in control, in any of its views. While in
+            // control, the override tells the agent which regions of its frames are lost.
+            let mut present = false;
+            if rco.is_some() {
+                let clock = Instant::now();
+                let mut lost: Vec<Lost> = Vec::new();
+                for (calib, frame) in [(&wide, &w.frame), (&tele, &te_frame)] {
+                    for d in lost_regions(frame) {
+                        lost.push((
+                            calib.id,
+                            [
+                                f64::from(d.x0),
+                                f64::from(d.y0),
+                                f64::from(d.x1),
+                                f64::from(d.y1),
+                            ],
+                        ));
+                    }
+                }
+                let wide_lost = lost.iter().any(|(c, _)| *c == CameraId::FrontWide);
+                present = wide_lost || (rco_active && deficit_side);
+                if present && log::log_enabled!(log::Level::Trace) {
+                    log::trace!("lost t {t:.1}: {lost:?}");
+                }
+                agent.set_lost(if present { lost } else { Vec::new() });
+                parts[2] += clock.elapsed().as_secs_f64();
+            }
+            // The agent plans on its frames at every step, whoever drives: while the
+            // override is in control it still keeps its distance, stops for lights and signs
+            // it sees, and the override's command only ever makes it more cautious.
+            {
+                let clock = Instant::now();
+                let hist = rig_history(&history, speed_scale, route_kappa(route, route_s, &ego));
+                let turn_cap = turn_cap(route, route_s, &params.agent);
+                let cams = vec![
+                    CameraInput {
+                        calib: wide,
+                        frames: wide_frames.iter().map(|f| f.data()).collect(),
+                    },
+                    CameraInput {
+                        calib: tele,
+                        frames: tele_frames.iter().map(|f| f.data()).collect(),
+                    },
+                ];
+                agent.plan(
+                    AgentInput {
+                        cameras: cams,
+                        history: &hist,
+                    },
+                    ego.speed_mps,
+                    turn_cap,
+                    odometer,
+                    speed_scale,
+                );
+                parts[1] += clock.elapsed().as_secs_f64();
+            }
+            if log::log_enabled!(log::Level::Trace) {
+                trace_truth(t, &ego, &traffic);
+            }
             match rco.as_mut() {
-                Some(ctl) if present => {
+                Some(ctl) => {
                     let clock = Instant::now();
-                    if !rco_active {
-                        if t - last_deficit_t > 1.0 {
-                            ctl.reset();
-                        }
-                        rco_active = true;
-                        if let Some(st) = rco_stats.as_mut() {
-                            st.episodes += 1;
-                        }
-                    }
-                    let views_seen = [
-                        (
-                            CameraId::CrossLeft,
-                            see(&sc, &left, &lens, key(CameraId::CrossLeft)),
-                        ),
-                        (CameraId::FrontWide, w),
-                        (
-                            CameraId::CrossRight,
-                            see(&sc, &right, &lens, key(CameraId::CrossRight)),
-                        ),
-                    ];
-                    deficit_side = views_seen.iter().any(|(_, v)| !v.deficits.is_empty());
-                    let obs = observation(
-                        rco_tick,
-                        &views_seen,
-                        &ego,
-                        prev_speed,
-                        prev_yaw,
-                        1.0 / s.agent_hz,
-                        route,
-                        route_s,
-                        town,
-                        &traffic,
-                        case,
-                        agent.intent().lead_gap_m,
-                    );
-                    rco_tick += 1;
-                    let d = ctl.step(&obs);
-                    if log::log_enabled!(log::Level::Trace) {
-                        log::trace!("rco t {t:.1} v {:.2}: {}", ego.speed_mps, d.summary());
-                    }
-                    if let Some(st) = rco_stats.as_mut() {
-                        st.llm_calls += u64::from(d.counters.llm_calls);
-                        st.llm_latency_ms += d.counters.llm_latency_ms;
-                        llm_calls += u64::from(d.counters.llm_calls);
-                        llm_ms += d.counters.llm_latency_ms;
-                        st.replans += u64::from(d.replanned);
-                        st.refusals += u64::from(d.refusal.is_some());
-                        if let Some(f) = &d.fallback {
-                            let kind = serde_json::to_value(f.kind)
-                                .ok()
-                                .and_then(|v| v.as_str().map(str::to_string))
-                                .unwrap_or_else(|| "fallback".into());
-                            *st.fallbacks.entry(kind).or_default() += 1;
-                            if st.first_fallback.is_none() {
-                                st.first_fallback = Some(f.message.clone());
+                    if present {
+                        if !rco_active {
+                            if t - last_deficit_t > 1.0 {
+                                ctl.reset();
+                            }
+                            rco_active = true;
+                            if let Some(st) = rco_stats.as_mut() {
+                                st.episodes += 1;
                             }
                         }
+                        let views_seen = [
+                            (
+                                left,
+                                see(&sc, &left, &lens, key(CameraId::CrossLeft)).frame,
+                            ),
+                            (wide, w.frame.clone()),
+                            (
+                                right,
+                                see(&sc, &right, &lens, key(CameraId::CrossRight)).frame,
+                            ),
+                        ];
+                        let views: Vec<View> = views_seen
+                            .iter()
+                            .map(|(calib, frame)| pixel_view(calib, frame, agent.objects()))
+                            .collect();
+                        deficit_side = views
+                            .iter()
+                            .any(|v| v.camera != CameraId::FrontWide && !v.deficits.is_empty());
+                        let obs = observation(
+                            rco_tick,
+                            views,
+                            &ego,
+                            prev_speed,
+                            prev_yaw,
+                            1.0 / s.agent_hz,
+                            route,
+                            route_s,
+                            town,
+                            case,
+                            agent.intent().lead_gap_m,
+                            agent.objects().len(),
+                        );
+                        rco_tick += 1;
+                        let d = ctl.step(&obs);
+                        if log::log_enabled!(log::Level::Trace) {
+                            log::trace!("rco t {t:.1} v {:.2}: {}", ego.speed_mps, d.summary());
+                        }
+                        agent.set_hidden_signal(d.hazards.iter().any(|h| {
+                            h.camera.is_some_and(|c| c.yaw_rad() == 0.0)
+                                && fogline_rco::is_signal_object(&h.object)
+                        }));
+                        if let Some(st) = rco_stats.as_mut() {
+                            st.llm_calls += u64::from(d.counters.llm_calls);
+                            st.llm_latency_ms += d.counters.llm_latency_ms;
+                            llm_calls += u64::from(d.counters.llm_calls);
+                            llm_ms += d.counters.llm_latency_ms;
+                            st.replans += u64::from(d.replanned);
+                            st.refusals += u64::from(d.refusal.is_some());
+                            if let Some(f) = &d.fallback {
+                                let kind = serde_json::to_value(f.kind)
+                                    .ok()
+                                    .and_then(|v| v.as_str().map(str::to_string))
+                                    .unwrap_or_else(|| "fallback".into());
+                                *st.fallbacks.entry(kind).or_default() += 1;
+                                if st.first_fallback.is_none() {
+                                    st.first_fallback = Some(f.message.clone());
+                                }
+                            }
+                        }
+                        rco_control = Some(VehicleControl {
+                            throttle: d.control.throttle,
+                            brake: d.control.brake,
+                            steer: d.control.steer,
+                        });
+                    } else {
+                        rco_active = false;
+                        rco_control = None;
+                        deficit_side = false;
+                        agent.set_hidden_signal(false);
                     }
-                    rco_control = Some(VehicleControl {
-                        throttle: d.control.throttle,
-                        brake: d.control.brake,
-                        steer: d.control.steer,
-                    });
                     parts[2] += clock.elapsed().as_secs_f64();
                 }
-                _ => {
+                None => {
                     rco_active = false;
                     rco_control = None;
-                    deficit_side = false;
-                    let clock = Instant::now();
-                    let hist =
-                        rig_history(&history, speed_scale, route_kappa(route, route_s, &ego));
-                    let turn_cap = turn_cap(route, route_s, &params.agent);
-                    let cams = vec![
-                        CameraInput {
-                            calib: wide,
-                            frames: wide_frames.iter().map(|f| f.data()).collect(),
-                        },
-                        CameraInput {
-                            calib: tele,
-                            frames: tele_frames.iter().map(|f| f.data()).collect(),
-                        },
-                    ];
-                    agent.plan(
-                        AgentInput {
-                            cameras: cams,
-                            history: &hist,
-                        },
-                        ego.speed_mps,
-                        turn_cap,
-                        odometer,
-                        speed_scale,
-                    );
-                    parts[1] += clock.elapsed().as_secs_f64();
-                    if log::log_enabled!(log::Level::Trace) {
-                        for n in &traffic.npcs {
-                            let (ax, ay) = ego_frame(&ego, n.pos);
-                            if (0.0..90.0).contains(&ax) && ay.abs() < 20.0 {
-                                log::trace!(
-                                    "truth t {t:.1} npc {} at {ax:.1} {ay:+.1} v {:.1} a {:.1}",
-                                    n.id,
-                                    n.speed_mps,
-                                    n.accel_mps2
-                                );
-                            }
-                        }
-                        for w in &traffic.walkers {
-                            let (ax, ay) = ego_frame(&ego, w.pos);
-                            if (3.0..45.0).contains(&ax) && (-4.0..8.0).contains(&ay) {
-                                log::trace!(
-                                    "truth t {t:.1} walker {} event {} at {ax:.1} {ay:+.1} moving {:.1}",
-                                    w.id,
-                                    w.event,
-                                    w.speed_mps
-                                );
-                            }
-                        }
-                    }
                 }
             }
             prev_speed = ego.speed_mps;
@@ -645,22 +674,23 @@ pub fn run_route(
             last_deficit_t = t;
         }
         // ---- Control and dynamics -------------------------------------------------------
+        let base = agent.control(
+            &ego,
+            &route.dense,
+            completion.index(),
+            DT,
+            odometer,
+            &params.bicycle,
+        );
         let control = match (rco_active, rco_control) {
             (true, Some(c)) => {
                 takeover_s += DT;
                 if let Some(st) = rco_stats.as_mut() {
                     st.ticks += 1;
                 }
-                c
+                supervise(base, c)
             }
-            _ => agent.control(
-                &ego,
-                &route.dense,
-                completion.index(),
-                DT,
-                odometer,
-                &params.bicycle,
-            ),
+            _ => base,
         };
         let before = ego;
         ego = bike_step(&params.bicycle, &ego, control);
@@ -956,11 +986,80 @@ fn turn_cap(route: &Route, s: f64, p: &AgentParams) -> f64 {
     (v_turn * v_turn + 2.0 * p.turn_decel_mps2 * d).sqrt()
 }
 
-/// The RCO observation of this tick.
+/// The override's command applied to the agent's: per pedal the more cautious of the two
+/// (the lower throttle, the harder brake), the agent's steering (both follow the route).
+/// The override can slow the car down, hold it or stop it; it never makes it faster than
+/// the agent would drive, so the agent's own stops (the car ahead, a red light, a walker
+/// it sees) stay in force while the override is in control.
+pub fn supervise(agent: VehicleControl, rco: VehicleControl) -> VehicleControl {
+    VehicleControl {
+        throttle: agent.throttle.min(rco.throttle),
+        brake: agent.brake.max(rco.brake),
+        steer: agent.steer,
+    }
+}
+
+/// The lost regions the perception finds in a frame (black inside a red outline), from its
+/// pixels alone.
+fn lost_regions(frame: &Frame) -> Vec<fogline_planner::detect::DeficitSeen> {
+    // A frame always has the size its calibration gives, so the scan cannot fail; an error
+    // would mean nothing was found.
+    fogline_planner::detect::find_deficits(
+        frame.data(),
+        frame.width() as usize,
+        frame.height() as usize,
+    )
+    .unwrap_or_default()
+}
+
+/// One view of the override's observation, from pixels only: the frame, the lost regions
+/// found in it, the road users the agent's perception found in it (no track ids: the
+/// override tracks them itself), and the camera's calibration.
+pub fn pixel_view(calib: &CameraCalib, frame: &Frame, objects: &[ObjectSeen]) -> View {
+    View {
+        camera: calib.id,
+        width: frame.width(),
+        height: frame.height(),
+        rgb: Some(Arc::from(frame.data())),
+        deficits: lost_regions(frame)
+            .iter()
+            .map(|d| {
+                PixelBox::new(
+                    f64::from(d.x0),
+                    f64::from(d.y0),
+                    f64::from(d.x1 - d.x0),
+                    f64::from(d.y1 - d.y0),
+                )
+            })
+            .collect(),
+        objects: objects
+            .iter()
+            .filter(|o| o.camera == calib.id)
+            .map(|o| TrafficObject {
+                class: match o.seen.kind {
+                    ObjectKind::Vehicle => "car".into(),
+                    ObjectKind::Person => "pedestrian".into(),
+                },
+                track_id: None,
+                rect: PixelBox::new(
+                    o.bbox[0],
+                    o.bbox[1],
+                    o.bbox[2] - o.bbox[0],
+                    o.bbox[3] - o.bbox[1],
+                ),
+            })
+            .collect(),
+        calib: Some(*calib),
+    }
+}
+
+/// The RCO observation of this tick: the views (from [`pixel_view`]), the ego's
+/// measurements and route, the case's weather and daylight, and `density` road users the
+/// agent detected.
 #[allow(clippy::too_many_arguments)]
 fn observation(
     tick: u64,
-    views: &[(CameraId, Seen)],
+    views: Vec<View>,
     ego: &VehicleState,
     prev_speed: f64,
     prev_yaw: f64,
@@ -968,41 +1067,10 @@ fn observation(
     route: &Route,
     route_s: f64,
     town: &Town,
-    traffic: &Traffic,
     case: &RouteCase,
     lead_gap: Option<f64>,
+    density: usize,
 ) -> Observation {
-    let mk_view = |cam: CameraId, seen: &Seen| {
-        let hidden: Vec<Option<u64>> = seen.deficits.iter().map(|d| d.track_id).collect();
-        View {
-            camera: cam,
-            width: seen.frame.width(),
-            height: seen.frame.height(),
-            rgb: Some(Arc::from(seen.frame.data())),
-            deficits: seen
-                .deficits
-                .iter()
-                .map(|d| {
-                    PixelBox::new(
-                        f64::from(d.rect.x0),
-                        f64::from(d.rect.y0),
-                        f64::from(d.rect.x1 - d.rect.x0),
-                        f64::from(d.rect.y1 - d.rect.y0),
-                    )
-                })
-                .collect(),
-            objects: seen
-                .boxes
-                .iter()
-                .filter(|b| traffic_class(b) && !hidden.contains(&b.track_id))
-                .map(|b| TrafficObject {
-                    class: b.class.clone(),
-                    track_id: b.track_id,
-                    rect: PixelBox::new(b.x_px, b.y_px, b.width_px, b.height_px),
-                })
-                .collect(),
-        }
-    };
     let (target, _) = route.pose(route_s + 10.0);
     let h = ego.heading();
     let d = sub(target, [ego.x_m, ego.y_m]);
@@ -1018,20 +1086,9 @@ fn observation(
         .nodes
         .iter()
         .any(|n| dist(n.pos, [ego.x_m, ego.y_m]) < ZONE_M + 2.0);
-    let pos = [ego.x_m, ego.y_m];
-    let density = traffic
-        .npcs
-        .iter()
-        .filter(|n| n.speed_mps > 0.1 && dist(n.pos, pos) < 50.0)
-        .count()
-        + traffic
-            .walkers
-            .iter()
-            .filter(|w| w.speed_mps > 0.1 && dist(w.pos, pos) < 50.0)
-            .count();
     Observation {
         tick,
-        views: views.iter().map(|(c, s)| mk_view(*c, s)).collect(),
+        views,
         ego: EgoState {
             speed_mps: ego.speed_mps,
             accel_x_mps2: (ego.speed_mps - prev_speed) / dt,
@@ -1061,11 +1118,31 @@ fn observation(
     }
 }
 
-fn traffic_class(b: &ObjectBox) -> bool {
-    matches!(
-        b.class.as_str(),
-        "car" | "truck" | "pedestrian" | "cyclist" | "bicycle" | "bus" | "motorcycle"
-    )
+/// Trace lines of the ground truth around the ego (vehicles and walkers ahead), for
+/// reading a `-vv` log next to what the agent perceived.
+fn trace_truth(t: f64, ego: &VehicleState, traffic: &Traffic) {
+    for n in &traffic.npcs {
+        let (ax, ay) = ego_frame(ego, n.pos);
+        if (0.0..90.0).contains(&ax) && ay.abs() < 20.0 {
+            log::trace!(
+                "truth t {t:.1} npc {} at {ax:.1} {ay:+.1} v {:.1} a {:.1}",
+                n.id,
+                n.speed_mps,
+                n.accel_mps2
+            );
+        }
+    }
+    for w in &traffic.walkers {
+        let (ax, ay) = ego_frame(ego, w.pos);
+        if (3.0..45.0).contains(&ax) && (-4.0..8.0).contains(&ay) {
+            log::trace!(
+                "truth t {t:.1} walker {} event {} at {ax:.1} {ay:+.1} moving {:.1}",
+                w.id,
+                w.event,
+                w.speed_mps
+            );
+        }
+    }
 }
 
 /// Whether `obb` overlaps any building of `town` (for tests of the layout).

@@ -54,6 +54,14 @@ pub enum EventKind {
 }
 
 impl EventKind {
+    /// A collision (with a pedestrian or cyclist, a vehicle, or the layout).
+    pub fn is_collision(self) -> bool {
+        matches!(
+            self,
+            EventKind::CollisionPedestrian | EventKind::CollisionVehicle | EventKind::CollisionLayout
+        )
+    }
+
     /// Every kind, in report order.
     pub const ALL: [EventKind; 11] = [
         EventKind::CollisionPedestrian,

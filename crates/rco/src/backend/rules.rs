@@ -7,29 +7,49 @@
 //! - *H1 vanished object*: the most recent traffic object of the same view, in the earlier
 //!   frames, whose box lies at least half inside the region and that is not visible now is
 //!   what the region hides; its motion comes from its track (by track id) over the frames.
-//! - *H2 shape*: otherwise the region's shape and position name the object: tall and
-//!   narrow (h/w ≥ 1.8) ending above 55 % of the image height → `traffic light`; tall
-//!   (h/w ≥ 1.4) → `pedestrian`; roughly square ending above mid-height → `traffic sign`;
-//!   wide (w ≥ 1.2 h) reaching below mid-height → `vehicle`; else `unknown object`. Its
-//!   motion comes from the region's own track (nearest region in each earlier frame).
-//! - *Motion* of a track (oldest to newest box): moving towards the ego's path by more than
-//!   1 % of the image width per frame (towards the centre in a front view, rightwards in the
-//!   left view, leftwards in the right view) → `crossing paths with the ego vehicle`; area
-//!   growing by more than 15 % → `approaching the ego vehicle`; shrinking by more than 13 %
-//!   → `moving away from the ego vehicle`; else `stationary`; a single frame → `unknown`.
+//! - *H2 shape*: otherwise the region's shape and position name the object. With the
+//!   view's calibration, a region standing on the road (its bottom below the horizon) is
+//!   sized in metres: 1.0–2.4 m tall and h/w ≥ 1.4 → `pedestrian`, 1.0–2.4 m and
+//!   h/w ≥ 0.6 → `cyclist`, wider and at most 4.5 m tall → `vehicle`; a region floating
+//!   above the horizon is a `traffic light` (h/w ≥ 1.8) or a `traffic sign` (h/w 0.6–1.6).
+//!   Without calibration: tall and narrow (h/w ≥ 1.8) ending above 55 % of the image
+//!   height → `traffic light`; tall (h/w ≥ 1.4) → `pedestrian`; roughly square ending above
+//!   mid-height → `traffic sign`; wide (w ≥ 1.2 h) reaching below mid-height → `vehicle`;
+//!   else `unknown object`. Its motion comes from the region's own track (nearest region
+//!   in each earlier frame).
+//! - *Motion over the ground* (calibrated views, objects on the road): the region's
+//!   bottom centre placed on the road in every frame it was seen, each position carried
+//!   into the current rig frame by the ego's own motion since (speed and yaw rate of the
+//!   observations, `dt_s` apart); the velocity from the oldest to the newest position:
+//!   across towards (or within 1.5 m of) the path faster than 0.5 m/s → `crossing paths
+//!   with the ego vehicle`; towards the ego faster than 1 m/s → `approaching the ego
+//!   vehicle`; along the ego's direction faster than 1 m/s → `moving away from the ego
+//!   vehicle`; else `stationary`; a single frame → `unknown`. A standing walker the car
+//!   drives up to is stationary, not approaching.
+//! - *Motion in image space* (no calibration, or a lamp or sign): moving towards the ego's
+//!   path by more than 1 % of the image width per 0.1 s (towards the centre in a front
+//!   view, rightwards in the left view, leftwards in the right view) → crossing; area
+//!   growing by more than 15 % → approaching; shrinking by more than 13 % → moving away;
+//!   else stationary; a single frame → unknown.
 //! - A missing view is a hazard `unknown object`, `unknown (camera lost)`.
 //!
 //! **Strategy** (first rule that fires):
 //! - *S1*: a vulnerable road user (pedestrian, person, bicycle, cyclist, motorcycle,
-//!   motorbike, rider) in a front view that is crossing, approaching or of unknown motion →
-//!   `stop-observe-move`.
+//!   motorbike, rider) in a front view that calls for a stop → `stop-observe-move`. With
+//!   its place on the road: crossing within 40 m ahead, in the path (1.8 m either side)
+//!   within 25 m unless moving away, or of unknown motion within 15 m; without: crossing,
+//!   approaching or of unknown motion. Not for a road user a stop-observe-move was already
+//!   for (within `resume_window_ticks`) that is not crossing: observed, it no longer stops
+//!   the car.
 //! - *S2*: a vulnerable road user crossing in a side view while the route turns or changes
 //!   lane towards that side → `stop-observe-move`.
 //! - *S3*: a stop-observe-move finished within `resume_window_ticks`, no front view has an
 //!   immediate hazard, and every hazard in a front view is one that stop was for (same view,
 //!   same object) → `move` (the ego has stopped and observed; it now proceeds).
-//! - *S4*: a hidden traffic light or sign in a front view (its state is unknown) →
-//!   `stop-observe-move`.
+//! - *S4*: a hidden traffic light or sign in a front view (its state is unknown) → `move`
+//!   with care: the car approaches slowly and the driving stack stops at the line as at an
+//!   all-way stop, then goes once cross traffic has stopped passing (a stop where the
+//!   hazard is first seen, tens of metres before the line, would be in the wrong place).
 //! - *S5*: a front view with an immediate hazard → `stop-observe-move`.
 //! - *S6*: otherwise `move`.
 //!
@@ -42,7 +62,8 @@
 //!   side's view has no immediate hazard and no inferred hazard, else `move_forward`.
 //! - *P4 speed*: an immediate hazard in a front view → `stop` + `quick_deceleration`;
 //!   turning or changing lanes towards a side view with an immediate hazard →
-//!   `deceleration`; with inferred hazards, `deceleration` above `cautious_speed_mps`, else
+//!   `deceleration`; with inferred hazards near enough to matter (within 30 m ahead and 8 m
+//!   to a side, or of unknown place), `deceleration` above `cautious_speed_mps`, else
 //!   `constant_speed`; without hazards, `acceleration` below `cruise_speed_mps` (capped by
 //!   the speed limit) for the first step, else `constant_speed`.
 //!
@@ -137,7 +158,9 @@ fn is_vru(object: &str) -> bool {
     VRU.iter().any(|v| o.contains(v))
 }
 
-fn is_signal(object: &str) -> bool {
+/// Whether a hazard's object names a traffic light, sign or signal (in any wording a model
+/// may use: `traffic light`, `traffic_light`, `stop sign`, …).
+pub fn is_signal(object: &str) -> bool {
     let o = object.to_ascii_lowercase().replace('_', " ");
     o.contains("traffic light") || o.contains("sign") || o.contains("signal")
 }
@@ -151,7 +174,7 @@ fn is_left(c: CameraId) -> bool {
 }
 
 /// The motion class of a track of boxes (oldest first) in `view`'s camera.
-fn motion_of(track: &[PixelBox], camera: CameraId, width: u32) -> &'static str {
+fn motion_of(track: &[PixelBox], camera: CameraId, width: u32, dt_s: f64) -> &'static str {
     let (Some(first), Some(last)) = (track.first(), track.last()) else {
         return UNKNOWN;
     };
@@ -159,7 +182,8 @@ fn motion_of(track: &[PixelBox], camera: CameraId, width: u32) -> &'static str {
         return UNKNOWN;
     }
     let w = f64::from(width.max(1));
-    let frames = (track.len() - 1) as f64;
+    // Thresholds are per 0.1 s; a track sampled at another rate is scaled to it.
+    let frames = (track.len() - 1) as f64 * (dt_s / 0.1).max(1e-3);
     let vx = (last.center().0 - first.center().0) / frames / w;
     let towards = if is_front(camera) {
         let side = last.center().0 - w / 2.0;
@@ -186,6 +210,31 @@ fn motion_of(track: &[PixelBox], camera: CameraId, width: u32) -> &'static str {
 }
 
 fn shape_guess(d: &PixelBox, v: &View) -> &'static str {
+    if let Some(c) = &v.calib {
+        // With a calibration the region's size is metric: standing on the road (its bottom
+        // below the horizon) it is a road user of its height; floating above it, a lamp or a
+        // sign.
+        let (cx, _) = d.center();
+        let aspect = d.height_px / d.width_px.max(1e-9);
+        return match v.ground_point(cx, d.y_end_px()) {
+            Some(g) => {
+                let range = (g[0] - c.x_m).hypot(g[1] - c.y_m);
+                let height_m = d.height_px * range / c.fy;
+                if (1.0..=2.4).contains(&height_m) && aspect >= 1.4 {
+                    "pedestrian"
+                } else if (1.0..=2.4).contains(&height_m) && aspect >= 0.6 {
+                    "cyclist"
+                } else if height_m <= 4.5 && aspect < 0.6 {
+                    "vehicle"
+                } else {
+                    "unknown object"
+                }
+            }
+            None if aspect >= 1.8 => "traffic light",
+            None if (0.6..=1.6).contains(&aspect) => "traffic sign",
+            None => "unknown object",
+        };
+    }
     let h_img = f64::from(v.height.max(1));
     let aspect = if d.width_px > 0.0 {
         d.height_px / d.width_px
@@ -206,12 +255,20 @@ fn shape_guess(d: &PixelBox, v: &View) -> &'static str {
     }
 }
 
+/// A hidden object's sightings, oldest first: the index of the observation in the history
+/// and its box there.
+type Sightings = Vec<(usize, PixelBox)>;
+
+fn boxes(track: &Sightings) -> Vec<PixelBox> {
+    track.iter().map(|(_, b)| *b).collect()
+}
+
 /// H1: the object that vanished into `d` (class and its track, oldest first).
 fn vanished(
     history: &[Observation],
     camera: CameraId,
     d: &PixelBox,
-) -> Option<(String, Vec<PixelBox>)> {
+) -> Option<(String, Sightings)> {
     let (now, earlier) = history.split_last()?;
     let now_view = now.view(camera)?;
     for obs in earlier.iter().rev() {
@@ -234,15 +291,16 @@ fn vanished(
             if visible {
                 continue;
             }
-            let track: Vec<PixelBox> = match o.track_id {
+            let track: Sightings = match o.track_id {
                 Some(t) => earlier
                     .iter()
-                    .filter_map(|ob| ob.view(camera))
-                    .flat_map(|vv| vv.objects.iter())
-                    .filter(|x| x.track_id == Some(t))
-                    .map(|x| x.rect)
+                    .enumerate()
+                    .filter_map(|(k, ob)| Some((k, ob.view(camera)?)))
+                    .flat_map(|(k, vv)| vv.objects.iter().map(move |x| (k, x)))
+                    .filter(|(_, x)| x.track_id == Some(t))
+                    .map(|(k, x)| (k, x.rect))
                     .collect(),
-                None => vec![o.rect],
+                None => vec![(0, o.rect)],
             };
             return Some((quote_label(&o.class).replace('_', " "), track));
         }
@@ -251,12 +309,12 @@ fn vanished(
 }
 
 /// The track of a deficit region: the nearest region in each earlier frame, then `d`.
-fn region_track(history: &[Observation], camera: CameraId, d: &PixelBox) -> Vec<PixelBox> {
+fn region_track(history: &[Observation], camera: CameraId, d: &PixelBox) -> Sightings {
     let reach = d.width_px.max(d.height_px).max(8.0);
     let mut track = Vec::new();
     let (c0, c1) = d.center();
     if let Some((_, earlier)) = history.split_last() {
-        for obs in earlier {
+        for (k, obs) in earlier.iter().enumerate() {
             let Some(v) = obs.view(camera) else { continue };
             let best = v
                 .deficits
@@ -268,16 +326,137 @@ fn region_track(history: &[Observation], camera: CameraId, d: &PixelBox) -> Vec<
                 .filter(|(dist, _)| *dist <= reach)
                 .min_by(|a, b| a.0.total_cmp(&b.0));
             if let Some((_, r)) = best {
-                track.push(*r);
+                track.push((k, *r));
             }
         }
     }
-    track.push(*d);
+    track.push((history.len().saturating_sub(1), *d));
     track
+}
+
+/// Where a hidden object is and how it moves over the ground, from calibrated views.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Geo {
+    /// Its ground contact now in the rig frame (`x` ahead of the rear axle, `y` left), m;
+    /// for a lamp or a sign (above the horizon), a position from its apparent size.
+    at: [f64; 2],
+    /// Its velocity over the ground in the rig frame now, m/s (`None`: seen once, or not on
+    /// the ground).
+    vel: Option<[f64; 2]>,
+}
+
+/// `p` (rig frame at observation `k`) in the rig frame of the last observation: the ego's
+/// motion in between (its speed and yaw rate, `dt` per observation) removed.
+fn to_now(history: &[Observation], k: usize, p: [f64; 2], dt: f64) -> [f64; 2] {
+    let mut q = p;
+    for j in k..history.len().saturating_sub(1) {
+        let (a, b) = (&history[j].ego, &history[j + 1].ego);
+        let dx = 0.5 * (a.speed_mps + b.speed_mps) * dt;
+        let (sn, cs) = (b.yaw_rate_rps * dt).sin_cos();
+        let (x, y) = (q[0] - dx, q[1]);
+        q = [cs * x + sn * y, -sn * x + cs * y];
+    }
+    q
+}
+
+/// Apparent height of a hidden lamp or sign (housing or face), m.
+fn signal_height_m(object: &str) -> f64 {
+    if object.to_ascii_lowercase().contains("light") {
+        1.0
+    } else {
+        0.9
+    }
+}
+
+/// The geometry of a region tracked by `track` in `camera` (`None` without calibration).
+fn geo_of(
+    history: &[Observation],
+    camera: CameraId,
+    track: &Sightings,
+    object: &str,
+    dt: f64,
+) -> Option<Geo> {
+    let last = history.len().checked_sub(1)?;
+    let &(kn, bn) = track.last()?;
+    let view = history.get(kn)?.view(camera)?;
+    let calib = view.calib.as_ref()?;
+    if kn != last {
+        return None;
+    }
+    if is_signal(object) {
+        // Above the road: the distance from the apparent height.
+        let z = calib.fy * signal_height_m(object) / bn.height_px.max(1.0);
+        let (cx, _) = bn.center();
+        let bearing = (calib.cx - cx) / calib.fx + calib.yaw_rad;
+        return Some(Geo {
+            at: [calib.x_m + z * bearing.cos(), calib.y_m + z * bearing.sin()],
+            vel: None,
+        });
+    }
+    let ground = |k: usize, b: &PixelBox| {
+        let v = history.get(k)?.view(camera)?;
+        let (cx, _) = b.center();
+        v.ground_point(cx, b.y_end_px())
+            .map(|p| to_now(history, k, p, dt))
+    };
+    let pn = ground(kn, &bn)?;
+    let vel = track
+        .iter()
+        .filter(|(k, _)| *k < kn)
+        .find_map(|(k, b)| ground(*k, b).map(|p| (*k, p)))
+        .map(|(k0, p0)| {
+            let t = (kn - k0) as f64 * dt;
+            [(pn[0] - p0[0]) / t, (pn[1] - p0[1]) / t]
+        });
+    Some(Geo { at: pn, vel })
+}
+
+/// The motion class from the ground track: moving across towards (or within 1.5 m of) the
+/// ego's path faster than 0.5 m/s → crossing; otherwise towards the ego faster than 1 m/s
+/// → approaching, along the ego's direction → moving away; else stationary.
+fn ground_motion(g: &Geo) -> &'static str {
+    let Some([vx, vy]) = g.vel else {
+        return UNKNOWN;
+    };
+    let y = g.at[1];
+    if vy.abs() > 0.5 && (y * vy < 0.0 || y.abs() < 1.5) {
+        CROSSING
+    } else if vx < -1.0 {
+        APPROACHING
+    } else if vx > 1.0 {
+        AWAY
+    } else {
+        STATIONARY
+    }
+}
+
+/// Whether a hidden object is near enough to shape the plan: within 30 m ahead and 8 m to
+/// either side (always, when its place is unknown).
+fn is_near(g: Option<&Geo>) -> bool {
+    g.is_none_or(|g| (-2.0..30.0).contains(&g.at[0]) && g.at[1].abs() < 8.0)
+}
+
+/// Whether a vulnerable road user ahead calls for a stop (rule S1): crossing within 40 m,
+/// in the ego's path (1.8 m either side: half the car and a margin) within 25 m unless it
+/// moves away, or of unknown motion within 15 m. Without geometry: crossing, approaching or
+/// of unknown motion.
+fn vru_stop(motion: &str, g: Option<&Geo>) -> bool {
+    match g {
+        Some(g) => {
+            let [x, y] = g.at;
+            x > -1.0
+                && ((motion == CROSSING && x < 40.0 && y.abs() < 10.0)
+                    || (y.abs() < 1.8 && x < 25.0 && motion != AWAY)
+                    || (motion == UNKNOWN && x < 15.0 && y.abs() < 4.0))
+        }
+        None => [CROSSING, APPROACHING, UNKNOWN].contains(&motion),
+    }
 }
 
 struct Inferred {
     hazards: Vec<Hazard>,
+    /// The geometry of each hazard, when the view is calibrated.
+    geo: Vec<Option<Geo>>,
     strategy: Strategy,
     rationale: String,
 }
@@ -285,6 +464,7 @@ struct Inferred {
 fn infer(ctx: &QueryContext<'_>, p: &RulesParams) -> Inferred {
     let now = ctx.now();
     let mut hazards: Vec<Hazard> = Vec::new();
+    let mut geo: Vec<Option<Geo>> = Vec::new();
     for &c in ctx.views {
         let Some(v) = now.view(c) else {
             hazards.push(Hazard {
@@ -292,25 +472,24 @@ fn infer(ctx: &QueryContext<'_>, p: &RulesParams) -> Inferred {
                 motion: "unknown (camera lost)".into(),
                 camera: Some(c),
             });
+            geo.push(None);
             continue;
         };
         for d in &v.deficits {
-            let (object, motion) = match vanished(ctx.history, c, d) {
-                Some((class, track)) if track.len() >= 2 => {
-                    (class, motion_of(&track, c, v.width).to_string())
-                }
-                Some((class, _)) => {
-                    let t = region_track(ctx.history, c, d);
-                    (class, motion_of(&t, c, v.width).to_string())
-                }
-                None => {
-                    let t = region_track(ctx.history, c, d);
-                    (
-                        shape_guess(d, v).to_string(),
-                        motion_of(&t, c, v.width).to_string(),
-                    )
-                }
+            let region = region_track(ctx.history, c, d);
+            let object = match vanished(ctx.history, c, d) {
+                Some((class, _)) => class,
+                None => shape_guess(d, v).to_string(),
             };
+            let g = geo_of(ctx.history, c, &region, &object, ctx.dt_s);
+            let motion = match (&g, vanished(ctx.history, c, d)) {
+                (Some(g), _) if !is_signal(&object) => ground_motion(g),
+                (_, Some((_, track))) if track.len() >= 2 => {
+                    motion_of(&boxes(&track), c, v.width, ctx.dt_s)
+                }
+                _ => motion_of(&boxes(&region), c, v.width, ctx.dt_s),
+            }
+            .to_string();
             let h = Hazard {
                 object,
                 motion,
@@ -318,10 +497,12 @@ fn infer(ctx: &QueryContext<'_>, p: &RulesParams) -> Inferred {
             };
             if !hazards.contains(&h) {
                 hazards.push(h);
+                geo.push(g);
             }
         }
     }
     hazards.truncate(MAX_HAZARDS);
+    geo.truncate(MAX_HAZARDS);
     let front_immediate = ctx
         .assessment
         .views
@@ -336,9 +517,28 @@ fn infer(ctx: &QueryContext<'_>, p: &RulesParams) -> Inferred {
         }
     };
     let front = |h: &&Hazard| h.camera.is_some_and(is_front);
-    let (strategy, why) = if let Some(h) = hazards.iter().filter(front).find(|h| {
-        is_vru(&h.object) && [CROSSING, APPROACHING, UNKNOWN].contains(&h.motion.as_str())
-    }) {
+    // S3 first for a hazard already observed: after a stop, a road user that is not
+    // crossing (standing at the kerb, walking along) does not stop the car again.
+    let observed = ctx
+        .ticks_since_stop
+        .is_some_and(|t| t <= p.resume_window_ticks)
+        && !front_immediate
+        && hazards.iter().filter(front).all(|h| {
+            h.motion != CROSSING
+                && ctx
+                    .stopped_for
+                    .iter()
+                    .any(|s| s.camera == h.camera && s.object == h.object)
+        });
+    let (strategy, why) = if let Some(h) = hazards
+        .iter()
+        .zip(&geo)
+        .find_map(|(h, g)| {
+            (h.camera.is_some_and(is_front) && is_vru(&h.object) && vru_stop(&h.motion, g.as_ref()))
+                .then_some(h)
+        })
+        .filter(|_| !observed)
+    {
         (
             Strategy::StopObserveMove,
             format!("S1: a {} ahead may be {}", h.object, h.motion),
@@ -371,8 +571,11 @@ fn infer(ctx: &QueryContext<'_>, p: &RulesParams) -> Inferred {
         )
     } else if let Some(h) = hazards.iter().filter(front).find(|h| is_signal(&h.object)) {
         (
-            Strategy::StopObserveMove,
-            format!("S4: a hidden {} ahead, state unknown", h.object),
+            Strategy::Move,
+            format!(
+                "S4: a hidden {} ahead, state unknown: approach with care and stop at the line as at an all-way stop",
+                h.object
+            ),
         )
     } else if front_immediate {
         (
@@ -384,6 +587,7 @@ fn infer(ctx: &QueryContext<'_>, p: &RulesParams) -> Inferred {
     };
     Inferred {
         hazards,
+        geo,
         strategy,
         rationale: why,
     }
@@ -408,7 +612,21 @@ fn state_map(
 
 fn move_plan(ctx: &QueryContext<'_>, p: &RulesParams) -> serde_json::Value {
     let now = ctx.now();
-    let hazards: &[Hazard] = ctx.hazard.map_or(&[], |h| &h.hazards);
+    let all: &[Hazard] = ctx.hazard.map_or(&[], |h| &h.hazards);
+    // Only hazards near enough to matter shape the plan (a lamp hidden 80 m ahead does not
+    // slow the car yet); their places come from this backend's own reading of the views.
+    let seen = infer(ctx, p);
+    let hazards: Vec<&Hazard> = all
+        .iter()
+        .filter(|h| {
+            let g = seen
+                .hazards
+                .iter()
+                .position(|x| x == *h)
+                .and_then(|i| seen.geo[i].as_ref());
+            is_near(g)
+        })
+        .collect();
     let any_immediate = ctx
         .assessment
         .views
@@ -641,26 +859,26 @@ mod tests {
         let front = CameraId::FrontWide;
         // Left of centre, moving right (towards the centre): crossing.
         assert_eq!(
-            motion_of(&[b(100.0, 20.0), b(130.0, 20.0)], front, 576),
+            motion_of(&[b(100.0, 20.0), b(130.0, 20.0)], front, 576, 0.1),
             CROSSING
         );
         // Growing in place: approaching.
         assert_eq!(
-            motion_of(&[b(100.0, 20.0), b(98.0, 24.0)], front, 576),
+            motion_of(&[b(100.0, 20.0), b(98.0, 24.0)], front, 576, 0.1),
             APPROACHING
         );
         assert_eq!(
-            motion_of(&[b(100.0, 24.0), b(101.0, 20.0)], front, 576),
+            motion_of(&[b(100.0, 24.0), b(101.0, 20.0)], front, 576, 0.1),
             AWAY
         );
         assert_eq!(
-            motion_of(&[b(100.0, 20.0), b(100.0, 20.0)], front, 576),
+            motion_of(&[b(100.0, 20.0), b(100.0, 20.0)], front, 576, 0.1),
             STATIONARY
         );
-        assert_eq!(motion_of(&[b(100.0, 20.0)], front, 576), UNKNOWN);
+        assert_eq!(motion_of(&[b(100.0, 20.0)], front, 576, 0.1), UNKNOWN);
         // Left camera: moving right in the image is towards the ego's path.
         assert_eq!(
-            motion_of(&[b(100.0, 20.0), b(130.0, 20.0)], CameraId::CrossLeft, 576),
+            motion_of(&[b(100.0, 20.0), b(130.0, 20.0)], CameraId::CrossLeft, 576, 0.1),
             CROSSING
         );
     }

@@ -120,6 +120,31 @@ fn stop_observe_move_waits_then_moves_when_the_trigger_holds() {
 }
 
 #[test]
+fn waiting_goes_on_while_deficits_come_and_go() {
+    // Standing still is safe whatever the deficits do: a region appearing during the wait
+    // neither refuses the wait step nor restarts the observation.
+    let b = Scripted {
+        hazard: vec![Ok(hazard_answer("stop-observe-move"))],
+        ..scripted(&plan_answer(2, [N, N, N], "move_forward", "constant_speed"))
+    };
+    let mut r = rco(b);
+    let extra = PixelBox::new(40.0, 200.0, 20.0, 40.0);
+    let obs = [
+        clean(0),
+        with_deficit(clean(1), CameraId::CrossLeft, extra),
+        clean(2),
+        clean(3),
+    ];
+    let ds: Vec<_> = obs.iter().map(|o| r.step(o)).collect();
+    for d in &ds[..3] {
+        assert_eq!(d.source, Source::Wait, "{d:?}");
+        assert_eq!(d.refusal, None);
+    }
+    assert_eq!(ds[3].replan_reason, Some(ReplanReason::TriggerHeld));
+    assert_eq!(ds[3].source, Source::Plan);
+}
+
+#[test]
 fn the_ego_holds_while_the_trigger_does_not_hold() {
     let b = Scripted {
         hazard: vec![Ok(hazard_answer("stop-observe-move"))],

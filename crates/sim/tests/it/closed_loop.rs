@@ -147,3 +147,86 @@ fn one_route_of_the_suite_and_the_baseline_alone() {
     let e = bad.validate().unwrap_err().to_string();
     assert!(e.contains("route 5") && e.contains("2 route(s)"), "{e}");
 }
+
+#[test]
+fn the_override_sees_only_what_the_pixels_show() {
+    use fogline_perturb::frame::Frame;
+    use fogline_planner::detect::{LaneOf, ObjectSeen};
+    use fogline_planner::perceive::{LeadSeen, ObjectKind};
+    use fogline_sim::run::pixel_view;
+    use fogline_types::clip::{CameraCalib, CameraId};
+
+    // A grey 576×320 frame with one deficit drawn as the lens draws it (black, 2 px red
+    // outline) and a red patch that is not one (a lamp-like blob, red inside).
+    let (w, h) = (576usize, 320usize);
+    let mut rgb = vec![118u8; w * h * 3];
+    let mut paint = |x0: usize, y0: usize, x1: usize, y1: usize, ring: bool| {
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let edge = x < x0 + 2 || x >= x1 - 2 || y < y0 + 2 || y >= y1 - 2;
+                let px = if !ring || edge { [250, 10, 12] } else { [0, 0, 0] };
+                rgb[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&px);
+            }
+        }
+    };
+    paint(300, 150, 330, 214, true);
+    paint(100, 40, 112, 52, false);
+    let frame = Frame::new(w as u32, h as u32, rgb).unwrap();
+    let calib = CameraCalib::standard(CameraId::FrontWide, 576, 320);
+    // One road user the agent's perception found in this camera, one in another camera.
+    let seen = |camera| ObjectSeen {
+        lane: LaneOf::Ego,
+        seen: LeadSeen {
+            contact_x: 12.0,
+            gap: 8.3,
+            speed: 0.0,
+            speed_se: 0.0,
+            lateral_speed: 0.0,
+            braking: false,
+            kind: ObjectKind::Vehicle,
+            width_m: 1.8,
+            right_edge: -0.9,
+            left_edge: 0.9,
+            confidence: 1.0,
+            track: [Some(12.0), None, None, None],
+        },
+        camera,
+        bbox: [250.0, 140.0, 330.0, 200.0],
+    };
+    let view = pixel_view(
+        &calib,
+        &frame,
+        &[seen(CameraId::FrontWide), seen(CameraId::FrontTele)],
+    );
+    // The deficit is found from its pixels alone, the red blob is not a deficit...
+    assert_eq!(view.deficits.len(), 1, "{:?}", view.deficits);
+    let d = view.deficits[0];
+    assert_eq!(
+        (d.x_px, d.y_px, d.width_px, d.height_px),
+        (300.0, 150.0, 30.0, 64.0)
+    );
+    // ...the objects are the perception's detections in this camera, without track ids
+    // (nobody hands the override a tracker's identities), and the camera is calibrated.
+    assert_eq!(view.objects.len(), 1);
+    assert_eq!(view.objects[0].class, "car");
+    assert_eq!(view.objects[0].track_id, None);
+    assert_eq!(view.calib, Some(calib));
+    assert_eq!(view.rgb.as_deref(), Some(frame.data()));
+}
+
+#[test]
+fn the_override_can_only_make_the_agent_more_cautious() {
+    use fogline_sim::run::supervise;
+    use fogline_sim::vehicle::VehicleControl;
+    let c = |throttle, brake, steer| VehicleControl {
+        throttle,
+        brake,
+        steer,
+    };
+    // The agent brakes for the car ahead while the override would drive on: the agent wins.
+    assert_eq!(supervise(c(0.0, 0.6, 0.1), c(0.7, 0.0, -0.3)), c(0.0, 0.6, 0.1));
+    // The override stops for a hidden walker while the agent would accelerate.
+    assert_eq!(supervise(c(1.0, 0.0, 0.0), c(0.0, 0.8, 0.2)), c(0.0, 0.8, 0.0));
+    // Both drive: the lower throttle.
+    assert_eq!(supervise(c(0.5, 0.0, 0.0), c(0.7, 0.0, 0.0)), c(0.5, 0.0, 0.0));
+}

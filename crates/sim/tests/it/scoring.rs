@@ -80,3 +80,31 @@ fn termination_rules() {
     }
     assert!(rc.completed() && rc.percent() == 100.0);
 }
+
+#[test]
+fn the_paired_bootstrap_interval() {
+    use fogline_sim::experiment::paired_bootstrap;
+    // A constant difference: a degenerate interval at it.
+    let (m, ci) = paired_bootstrap(&[4.0; 12], 2000, 1).unwrap();
+    assert_eq!((m, ci), (4.0, [4.0, 4.0]));
+    assert!(paired_bootstrap(&[], 2000, 1).is_none());
+    // 36 differences: the interval holds the mean, is seeded (same seed, same interval), and
+    // is close to the normal-theory one, mean ± 1.96 sd / sqrt(n) (the mean of 36 draws
+    // is nearly normal).
+    let d: Vec<f64> = (0..36)
+        .map(|i| {
+            let u = ((i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11) as f64 / (1u64 << 53) as f64;
+            20.0 * (u - 0.5) + 3.0
+        })
+        .collect();
+    let (m, ci) = paired_bootstrap(&d, 10_000, 7).unwrap();
+    assert_eq!(paired_bootstrap(&d, 10_000, 7).unwrap(), (m, ci));
+    assert_ne!(paired_bootstrap(&d, 10_000, 8).unwrap().1, ci);
+    assert!(ci[0] < m && m < ci[1], "{ci:?} {m}");
+    let n = d.len() as f64;
+    let sd = (d.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0)).sqrt();
+    let half = 1.96 * sd / n.sqrt();
+    for (got, want) in [(ci[0], m - half), (ci[1], m + half)] {
+        assert!((got - want).abs() < 0.12 * half, "{got} vs {want}");
+    }
+}
