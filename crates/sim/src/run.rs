@@ -468,7 +468,9 @@ pub fn run_route(
     let mut rco_control: Option<VehicleControl> = None;
     let mut deficit_agent = false;
     let mut deficit_side = false;
-    let mut last_deficit_t = f64::NEG_INFINITY;
+    // When the override last found a lost region (a new take-over more than 1 s later
+    // starts with a reset controller).
+    let mut last_present_t = f64::NEG_INFINITY;
     let mut rco_active = false;
     let mut rco_tick: u64 = 0;
     let mut timeline: Vec<[f64; 4]> = Vec::new();
@@ -581,7 +583,7 @@ pub fn run_route(
                     let clock = Instant::now();
                     if present {
                         if !rco_active {
-                            if t - last_deficit_t > 1.0 {
+                            if t - last_present_t > 1.0 {
                                 ctl.reset();
                             }
                             rco_active = true;
@@ -666,12 +668,14 @@ pub fn run_route(
                     rco_control = None;
                 }
             }
+            if present {
+                last_present_t = t;
+            }
             prev_speed = ego.speed_mps;
             prev_yaw = ego.yaw_rad;
         }
         if deficit_agent || (rco_active && deficit_side) {
             deficit_s += DT;
-            last_deficit_t = t;
         }
         // ---- Control and dynamics -------------------------------------------------------
         let base = agent.control(
