@@ -1727,12 +1727,11 @@ fn traffic_light(eyes: &Eyes<'_>, lost: &[Lost]) -> Option<(Lamp, f64)> {
                     .collect();
                 if near.len() * k * k > best.0 {
                     let half = k as f64 / 2.0;
-                    let vm = near.iter().map(|p| p.1 as f64).sum::<f64>() / near.len() as f64
-                        + half;
+                    let vm =
+                        near.iter().map(|p| p.1 as f64).sum::<f64>() / near.len() as f64 + half;
                     if !lost.is_empty() {
-                        let um = near.iter().map(|p| p.0 as f64).sum::<f64>()
-                            / near.len() as f64
-                            + half;
+                        let um =
+                            near.iter().map(|p| p.0 as f64).sum::<f64>() / near.len() as f64 + half;
                         if in_lost(lost, view.calib.id, um, vm) {
                             continue;
                         }

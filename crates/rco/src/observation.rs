@@ -233,9 +233,19 @@ impl View {
                 .check(&format!("view {cam}, object {i} ({})", o.class))?;
         }
         if let Some(c) = &self.calib {
-            let finite = [c.fx, c.fy, c.cx, c.cy, c.x_m, c.y_m, c.z_m, c.yaw_rad, c.pitch_rad]
-                .iter()
-                .all(|v| v.is_finite());
+            let finite = [
+                c.fx,
+                c.fy,
+                c.cx,
+                c.cy,
+                c.x_m,
+                c.y_m,
+                c.z_m,
+                c.yaw_rad,
+                c.pitch_rad,
+            ]
+            .iter()
+            .all(|v| v.is_finite());
             if !finite || c.fx <= 0.0 || c.fy <= 0.0 || c.z_m <= 0.0 {
                 return Err(format!(
                     "view {cam}: calib needs finite numbers, positive focal lengths and a camera above the road (z_m > 0)"

@@ -507,9 +507,9 @@ impl Summary {
                 .find(|c| c.deficit == Some(k) && c.rco.is_none());
             let with = params.configs.iter().find(|c| {
                 c.deficit == Some(k)
-                    && c.rco
-                        .as_ref()
-                        .is_some_and(|r| r.modules == fogline_rco::Modules::default() && r.plan_limit == 5)
+                    && c.rco.as_ref().is_some_and(|r| {
+                        r.modules == fogline_rco::Modules::default() && r.plan_limit == 5
+                    })
             });
             let (Some(base), Some(with)) = (base, with) else {
                 continue;
@@ -534,16 +534,13 @@ impl Summary {
                 continue;
             };
             let collisions = |name: &str| {
-                configs
-                    .iter()
-                    .find(|c| c.config == name)
-                    .map_or(0.0, |c| {
-                        c.infractions_per_km
-                            .iter()
-                            .filter(|(e, _)| e.is_collision())
-                            .map(|(_, v)| v)
-                            .sum::<f64>()
-                    })
+                configs.iter().find(|c| c.config == name).map_or(0.0, |c| {
+                    c.infractions_per_km
+                        .iter()
+                        .filter(|(e, _)| e.is_collision())
+                        .map(|(_, v)| v)
+                        .sum::<f64>()
+                })
             };
             paired.push(PairedDiff {
                 deficit: k,

@@ -592,10 +592,7 @@ pub fn run_route(
                             }
                         }
                         let views_seen = [
-                            (
-                                left,
-                                see(&sc, &left, &lens, key(CameraId::CrossLeft)).frame,
-                            ),
+                            (left, see(&sc, &left, &lens, key(CameraId::CrossLeft)).frame),
                             (wide, w.frame.clone()),
                             (
                                 right,

@@ -58,7 +58,9 @@ impl EventKind {
     pub fn is_collision(self) -> bool {
         matches!(
             self,
-            EventKind::CollisionPedestrian | EventKind::CollisionVehicle | EventKind::CollisionLayout
+            EventKind::CollisionPedestrian
+                | EventKind::CollisionVehicle
+                | EventKind::CollisionLayout
         )
     }
 

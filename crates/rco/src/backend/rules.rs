@@ -878,7 +878,12 @@ mod tests {
         assert_eq!(motion_of(&[b(100.0, 20.0)], front, 576, 0.1), UNKNOWN);
         // Left camera: moving right in the image is towards the ego's path.
         assert_eq!(
-            motion_of(&[b(100.0, 20.0), b(130.0, 20.0)], CameraId::CrossLeft, 576, 0.1),
+            motion_of(
+                &[b(100.0, 20.0), b(130.0, 20.0)],
+                CameraId::CrossLeft,
+                576,
+                0.1
+            ),
             CROSSING
         );
     }

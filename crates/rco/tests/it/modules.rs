@@ -357,7 +357,12 @@ fn calibrated(mut obs: Observation) -> Observation {
 /// `p` in `camera` (576×320, standard rig).
 fn walker_box(camera: CameraId, p: [f64; 2]) -> PixelBox {
     let calib = CameraCalib::standard(camera, 576, 320);
-    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
     for dy in [-0.3, 0.3] {
         for z in [0.0, 1.7] {
             let (u, v, _) = calib.project([p[0], p[1] + dy, z]).unwrap();
@@ -375,7 +380,10 @@ fn a_calibrated_view_puts_a_pixel_on_the_road() {
     for p in [[12.0, 1.0], [30.0, -3.5], [6.0, 0.0]] {
         let (u, y, _) = v.calib.unwrap().project([p[0], p[1], 0.0]).unwrap();
         let g = v.ground_point(u, y).unwrap();
-        assert!((g[0] - p[0]).abs() < 1e-9 && (g[1] - p[1]).abs() < 1e-9, "{p:?} -> {g:?}");
+        assert!(
+            (g[0] - p[0]).abs() < 1e-9 && (g[1] - p[1]).abs() < 1e-9,
+            "{p:?} -> {g:?}"
+        );
     }
     // At or above the horizon the ray never meets the road.
     assert_eq!(v.ground_point(288.0, 160.0), None);
@@ -385,7 +393,10 @@ fn a_calibrated_view_puts_a_pixel_on_the_road() {
     left.calib = Some(CameraCalib::standard(CameraId::CrossLeft, 576, 320));
     let (u, y, _) = left.calib.unwrap().project([8.0, 6.0, 0.0]).unwrap();
     let g = left.ground_point(u, y).unwrap();
-    assert!((g[0] - 8.0).abs() < 1e-9 && (g[1] - 6.0).abs() < 1e-9, "{g:?}");
+    assert!(
+        (g[0] - 8.0).abs() < 1e-9 && (g[1] - 6.0).abs() < 1e-9,
+        "{g:?}"
+    );
 }
 
 /// Five observations 0.4 s apart of a walker masked in the front view at the rig-frame
@@ -393,7 +404,11 @@ fn a_calibrated_view_puts_a_pixel_on_the_road() {
 fn masked_walker(speed: f64, at: impl Fn(usize) -> [f64; 2]) -> Vec<Observation> {
     (0..5)
         .map(|k| {
-            let mut o = calibrated(with_deficit(clean(k as u64), FRONT, walker_box(FRONT, at(k))));
+            let mut o = calibrated(with_deficit(
+                clean(k as u64),
+                FRONT,
+                walker_box(FRONT, at(k)),
+            ));
             o.ego.speed_mps = speed;
             o
         })

@@ -164,7 +164,11 @@ fn the_override_sees_only_what_the_pixels_show() {
         for y in y0..y1 {
             for x in x0..x1 {
                 let edge = x < x0 + 2 || x >= x1 - 2 || y < y0 + 2 || y >= y1 - 2;
-                let px = if !ring || edge { [250, 10, 12] } else { [0, 0, 0] };
+                let px = if !ring || edge {
+                    [250, 10, 12]
+                } else {
+                    [0, 0, 0]
+                };
                 rgb[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&px);
             }
         }
@@ -224,9 +228,18 @@ fn the_override_can_only_make_the_agent_more_cautious() {
         steer,
     };
     // The agent brakes for the car ahead while the override would drive on: the agent wins.
-    assert_eq!(supervise(c(0.0, 0.6, 0.1), c(0.7, 0.0, -0.3)), c(0.0, 0.6, 0.1));
+    assert_eq!(
+        supervise(c(0.0, 0.6, 0.1), c(0.7, 0.0, -0.3)),
+        c(0.0, 0.6, 0.1)
+    );
     // The override stops for a hidden walker while the agent would accelerate.
-    assert_eq!(supervise(c(1.0, 0.0, 0.0), c(0.0, 0.8, 0.2)), c(0.0, 0.8, 0.0));
+    assert_eq!(
+        supervise(c(1.0, 0.0, 0.0), c(0.0, 0.8, 0.2)),
+        c(0.0, 0.8, 0.0)
+    );
     // Both drive: the lower throttle.
-    assert_eq!(supervise(c(0.5, 0.0, 0.0), c(0.7, 0.0, 0.0)), c(0.5, 0.0, 0.0));
+    assert_eq!(
+        supervise(c(0.5, 0.0, 0.0), c(0.7, 0.0, 0.0)),
+        c(0.5, 0.0, 0.0)
+    );
 }

@@ -93,7 +93,8 @@ fn the_paired_bootstrap_interval() {
     // is nearly normal).
     let d: Vec<f64> = (0..36)
         .map(|i| {
-            let u = ((i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11) as f64 / (1u64 << 53) as f64;
+            let u =
+                ((i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11) as f64 / (1u64 << 53) as f64;
             20.0 * (u - 0.5) + 3.0
         })
         .collect();
