@@ -160,6 +160,12 @@ pub const ZEBRA_CAUTION_M: f64 = 20.0;
 
 /// Gap kept before a crossing when stopping, m.
 pub const CROSSING_GAP_M: f64 = 5.5;
+/// A walker whose contact is more than this beyond the near edge of a crossing is not on
+/// it, m (a crossing is about 4 m deep).
+pub const WALKER_ON_CROSSING_M: f64 = 6.0;
+/// The car stops this far short of a walker in its lane away from a crossing, m (the
+/// planner's own margin).
+pub const WALKER_KEEP_M: f64 = 2.5;
 
 /// What the planner is given each step.
 pub struct AgentInput<'a> {
@@ -361,6 +367,17 @@ impl Baseline {
         if decision == Decision::StopForSign && odometer_m < self.sign_free_until_m {
             decision = Decision::KeepLane;
         }
+        // A walker in the lane well beyond the nearest crossing is not on it: the car
+        // yields short of where the walker is, as to any road user in its lane, not at a
+        // crossing it can pass.
+        let walker_beyond = decision == Decision::YieldToCrossing
+            && perc
+                .lead
+                .zip(perc.zebra)
+                .is_some_and(|(l, z)| l.contact_x > z + WALKER_ON_CROSSING_M);
+        if walker_beyond {
+            planned_stop = perc.lead.map(|l| l.contact_x - WALKER_KEEP_M - EGO_FRONT_M);
+        }
         // The planned stop point, or further back: 5.5 m before a crossing the planner sees
         // short of it (where the stop line is; this keeps the crossing's stripes out of the
         // planner's road-brightness reference while the car waits).
@@ -376,7 +393,7 @@ impl Baseline {
                 .filter(|&z| perc.light.is_none_or(|(_, d)| z < d))
                 .map(|z| z - CROSSING_GAP_M - EGO_FRONT_M);
             match before_zebra {
-                Some(b) if b < planned + 8.0 => planned.min(b.max(0.0)),
+                Some(b) if b < planned + 8.0 && !walker_beyond => planned.min(b.max(0.0)),
                 _ => planned,
             }
         };
@@ -603,8 +620,15 @@ pub fn unstick_cap(gap: Option<f64>, decel: f64) -> f64 {
 
 /// A vehicle ahead slower than this is remembered when it drops out of view, m/s.
 pub const LEAD_MEMORY_MPS: f64 = 1.0;
-/// For this many planning steps without seeing it again (4 s at 2.5 Hz).
+/// For this many planning steps without seeing it again (4 s at 2.5 Hz)...
 pub const LEAD_MEMORY_PLANS: u64 = 10;
+/// ... unless it is closer than this, m: so close, a car's contact is below the wide
+/// camera's view or on paint that reads like it, and not seeing it is weak evidence that
+/// it left (a car that drives straight off is seen again as it pulls away; one that turns
+/// away close ahead is not) ...
+pub const LEAD_BLIND_M: f64 = 5.0;
+/// ... when it is kept for this many steps (30 s at 2.5 Hz, most of a red phase).
+pub const LEAD_BLIND_PLANS: u64 = 75;
 
 /// The brake for a stop point that needs `need` m/s² (see [`Baseline::needed_decel`]):
 /// `None` while the planned deceleration `planned` suffices (the speed PID follows the
@@ -625,10 +649,10 @@ pub struct LeadMemory {
 impl LeadMemory {
     /// Updates the memory with planning step `plan`'s lead (`None`: none seen).
     /// A vehicle slower than [`LEAD_MEMORY_MPS`] seen at least [`UNSTICK_KEEP_M`] away is
-    /// remembered; one read closer keeps the memory fresh without moving it (such a
-    /// reading alone is taken for a misreading); a moving vehicle replaces it. Without a
-    /// lead it is forgotten once the car has reached it or after [`LEAD_MEMORY_PLANS`]
-    /// steps.
+    /// remembered; one read closer counts as none (such a reading alone is taken for a
+    /// misreading: a kerb across a turn read so could hold the car for good); a moving
+    /// vehicle replaces it. Without a lead it is forgotten once the car has reached it or
+    /// after [`LEAD_MEMORY_PLANS`] steps ([`LEAD_BLIND_PLANS`] within [`LEAD_BLIND_M`]).
     pub fn update(
         &mut self,
         lead: Option<&LeadSeen>,
@@ -640,17 +664,17 @@ impl LeadMemory {
             Some(l) if l.speed / speed_scale < LEAD_MEMORY_MPS && l.gap >= UNSTICK_KEEP_M => {
                 self.seen = Some((odometer_m + l.gap, plan));
             }
-            Some(l) if l.gap < UNSTICK_KEEP_M => {
-                if let Some((at, _)) = self.seen {
-                    self.seen = Some((at, plan));
-                }
-            }
-            Some(_) => self.seen = None,
-            None => {
-                if self
-                    .seen
-                    .is_some_and(|(at, k)| at < odometer_m || plan - k > LEAD_MEMORY_PLANS)
-                {
+            Some(l) if l.gap >= UNSTICK_KEEP_M => self.seen = None,
+            // None, or a reading too close to trust alone: neither moves nor refreshes it.
+            _ => {
+                if self.seen.is_some_and(|(at, k)| {
+                    let keep = if at - odometer_m < LEAD_BLIND_M {
+                        LEAD_BLIND_PLANS
+                    } else {
+                        LEAD_MEMORY_PLANS
+                    };
+                    at < odometer_m || plan - k > keep
+                }) {
                     self.seen = None;
                 }
             }
@@ -793,13 +817,25 @@ mod tests {
         let r = m.recall(103.0).unwrap();
         assert_eq!((r.gap, r.speed, r.kind), (3.0, 0.0, ObjectKind::Vehicle));
         assert_eq!(follow_cap(Some(&r), 2.0, 8.0, 1.0), 0.0);
-        // Read 1 m away (too close to trust alone): kept fresh, not moved.
-        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 9, 1.0);
-        m.update(None, 103.0, 18, 1.0);
+        // 3 m behind it (too close to see it), the car does not forget it...
+        m.update(None, 103.0, 1 + LEAD_MEMORY_PLANS + 1, 1.0);
         assert_eq!(m.gap(103.0), Some(3.0));
-        // Forgotten after `LEAD_MEMORY_PLANS` steps unseen...
-        m.update(None, 103.0, 9 + LEAD_MEMORY_PLANS + 1, 1.0);
+        // ... for `LEAD_BLIND_PLANS` steps (a reading 1 m away, too close to trust alone,
+        // neither moves nor refreshes it), or until past where it was; and forgets it after
+        // `LEAD_MEMORY_PLANS` steps unseen where it would be in view.
+        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 9, 1.0);
+        m.update(None, 103.0, 1 + LEAD_BLIND_PLANS, 1.0);
+        assert_eq!(m.gap(103.0), Some(3.0));
+        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 2 + LEAD_BLIND_PLANS, 1.0);
         assert_eq!(m.gap(103.0), None);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 1.0);
+        m.update(None, 106.5, 2, 1.0);
+        assert_eq!(m.gap(106.5), None);
+        m.update(Some(&vehicle(8.0, 0.0)), 100.0, 30, 1.0);
+        m.update(None, 100.0, 30 + LEAD_MEMORY_PLANS, 1.0);
+        assert_eq!(m.gap(100.0), Some(8.0));
+        m.update(None, 100.0, 31 + LEAD_MEMORY_PLANS, 1.0);
+        assert_eq!(m.gap(100.0), None);
         // ... or once it drives off (seen moving), or a close reading alone: never stored.
         m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 1.0);
         m.update(Some(&vehicle(9.0, 16.0)), 100.0, 2, 4.0);
