@@ -827,7 +827,7 @@ impl Traffic {
     }
 
     fn step_walkers(&mut self, town: &Town, ego: &EgoView, t_s: f64, dt: f64) {
-        let ego_p = ego.state.point(0.0, 0.0);
+        let ego_p = ego.state.point(EGO_CENTRE_AHEAD_M, 0.0);
         let vehicles: Vec<(P2, f64)> = self
             .npcs
             .iter()
@@ -852,14 +852,7 @@ impl Traffic {
                     }
                     _ => true,
                 };
-                let mid = [
-                    (w.pos[0] + w.target[0]) / 2.0,
-                    (w.pos[1] + w.target[1]) / 2.0,
-                ];
-                let traffic_near = vehicles
-                    .iter()
-                    .any(|&(p, sp)| within(p, mid, 8.0 + 2.0 * sp));
-                if allowed && !traffic_near {
+                if allowed && !walker_waits(&vehicles, w.pos, w.target) {
                     w.waiting = false;
                 } else {
                     w.speed_mps = 0.0;
@@ -1011,9 +1004,54 @@ pub fn extent(parts: &[Part]) -> (f64, f64) {
     ((x1 - x0) / 2.0, (y1 - y0) / 2.0)
 }
 
+/// A vehicle slower than this is standing for a walker at the kerb, m/s.
+const STANDING_MPS: f64 = 0.3;
+/// A standing vehicle whose centre is this close to a walker's line across is on the
+/// crossing, m (a car's half length and a metre).
+const ON_CROSSING_M: f64 = 3.5;
+
+/// Whether a walker at the kerb, about to cross from `from` to `to`, waits for `vehicles`
+/// (box centre, speed): for a moving vehicle within 8 m (plus 2 s of its travel) of the
+/// crossing's middle, or a standing one on the crossing. A vehicle standing short of the
+/// crossing is yielding to the walker, who goes: when walkers waited for any vehicle near,
+/// a car that stopped for them held them, and they it, for good.
+fn walker_waits(vehicles: &[(P2, f64)], from: P2, to: P2) -> bool {
+    let mid = [(from[0] + to[0]) / 2.0, (from[1] + to[1]) / 2.0];
+    let d = sub(to, from);
+    let len2 = dot(d, d).max(1e-9);
+    vehicles.iter().any(|&(p, sp)| {
+        if sp < STANDING_MPS {
+            let k = (dot(sub(p, from), d) / len2).clamp(0.0, 1.0);
+            within(p, add(from, d, k), ON_CROSSING_M)
+        } else {
+            within(p, mid, 8.0 + 2.0 * sp)
+        }
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_walker_crosses_in_front_of_a_car_standing_for_them_not_of_one_on_the_crossing() {
+        // A crossing from (0, -5) to (0, 5); a car heading +x.
+        let (from, to) = ([0.0, -5.0], [0.0, 5.0]);
+        // Standing with its nose 1 m short of the crossing's 3 m band: the walker goes.
+        assert!(!walker_waits(
+            &[([-1.5 - 1.0 - 2.45, -1.75], 0.0)],
+            from,
+            to
+        ));
+        // Standing over the crossing: the walker waits.
+        assert!(walker_waits(&[([-1.0, -1.75], 0.0)], from, to));
+        // Moving towards it 10 m off at 5 m/s, or 3 m off at 1 m/s: the walker waits.
+        assert!(walker_waits(&[([-10.0, -1.75], 5.0)], from, to));
+        assert!(walker_waits(&[([-7.0, -1.75], 1.0)], from, to));
+        // Far, or none: the walker goes.
+        assert!(!walker_waits(&[([-30.0, -1.75], 5.0)], from, to));
+        assert!(!walker_waits(&[], from, to));
+    }
 
     #[test]
     fn a_standing_ego_holds_a_vehicle_only_where_it_stands_on_its_path() {
