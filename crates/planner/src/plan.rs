@@ -30,6 +30,9 @@ pub struct Plan {
     pub stop_at: Option<f64>,
 }
 
+/// Where no crossing is nearer, the car yields this far short of a walker in its lane, m.
+pub const WALKER_GAP_M: f64 = 2.5;
+
 /// Decides and plans.
 pub fn plan(p: &Perception) -> Plan {
     let v0 = p.speed;
@@ -46,7 +49,7 @@ pub fn plan(p: &Perception) -> Plan {
     if let Some(l) = lead.filter(|l| l.kind == ObjectKind::Person && l.contact_x < 45.0) {
         let stop_at = match p.zebra {
             Some(z) if z < l.contact_x + 1.0 => z - 1.0 - EGO_FRONT_M,
-            _ => l.contact_x - 2.5 - EGO_FRONT_M,
+            _ => l.contact_x - WALKER_GAP_M - EGO_FRONT_M,
         };
         let traj = rollout(
             &Path::straight(),

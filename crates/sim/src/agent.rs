@@ -163,9 +163,6 @@ pub const CROSSING_GAP_M: f64 = 5.5;
 /// A walker whose contact is more than this beyond the near edge of a crossing is not on
 /// it, m (a crossing is about 4 m deep).
 pub const WALKER_ON_CROSSING_M: f64 = 6.0;
-/// The car stops this far short of a walker in its lane away from a crossing, m (the
-/// planner's own margin).
-pub const WALKER_KEEP_M: f64 = 2.5;
 
 /// What the planner is given each step.
 pub struct AgentInput<'a> {
@@ -376,7 +373,9 @@ impl Baseline {
                 .zip(perc.zebra)
                 .is_some_and(|(l, z)| l.contact_x > z + WALKER_ON_CROSSING_M);
         if walker_beyond {
-            planned_stop = perc.lead.map(|l| l.contact_x - WALKER_KEEP_M - EGO_FRONT_M);
+            planned_stop = perc
+                .lead
+                .map(|l| l.contact_x - fogline_planner::plan::WALKER_GAP_M - EGO_FRONT_M);
         }
         // The planned stop point, or further back: 5.5 m before a crossing the planner sees
         // short of it (where the stop line is; this keeps the crossing's stripes out of the

@@ -1045,7 +1045,7 @@ mod tests {
         ));
         // Standing over the crossing: the walker waits.
         assert!(walker_waits(&[([-1.0, -1.75], 0.0)], from, to));
-        // Moving towards it 10 m off at 5 m/s, or 3 m off at 1 m/s: the walker waits.
+        // Moving towards it 10 m off at 5 m/s, or 7 m off at 1 m/s: the walker waits.
         assert!(walker_waits(&[([-10.0, -1.75], 5.0)], from, to));
         assert!(walker_waits(&[([-7.0, -1.75], 1.0)], from, to));
         // Far, or none: the walker goes.
