@@ -7,7 +7,11 @@
 //! arrival going first at stop signs, turn left at a signal only when no oncoming vehicle is
 //! near, and keep the junction clear when their exit is full. They choose straight (weight 2),
 //! left or right at random at every junction. The population lives around the ego: vehicles
-//! that end up more than 230 m away reappear 110–190 m away on a free stretch of lane.
+//! that end up more than 230 m away reappear 110–190 m away on a free stretch of lane. As
+//! CARLA's traffic manager does, a vehicle that has stood (below 0.8 m/s) for 90 s, not
+//! held at a red or amber light, is stuck: the one stuck longest is taken out of the town
+//! (at most one every 10 s) and another appears elsewhere. Without this, queues that block
+//! each other across a junction stand for good, and so does the ego behind them.
 //!
 //! **Pedestrians** (some of them cyclists) walk the sidewalks from corner to corner and cross
 //! at the zebras, at signals only while their street's traffic has red and enough time is
@@ -120,6 +124,9 @@ pub struct Npc {
     arrived_s: Option<f64>,
     admitted: Option<usize>,
     braking: bool,
+    /// Since when it has stood (speed at most [`STUCK_MPS`], not held at a light), s;
+    /// `None` before its first update.
+    idle_since_s: Option<f64>,
     draw: Stream,
 }
 
@@ -321,6 +328,8 @@ pub struct Traffic {
     draw: Stream,
     next_id: u64,
     fired: Vec<bool>,
+    /// When a stuck vehicle was last taken out, s.
+    last_removal_s: f64,
 }
 
 /// What the traffic needs to know about the ego each update.
@@ -337,6 +346,17 @@ const IDM_S0_M: f64 = 2.5;
 const IDM_A: f64 = 1.5;
 const IDM_B: f64 = 3.0;
 const MAX_BRAKE: f64 = 8.0;
+/// A vehicle slower than this stands, for the stuck rule (CARLA's traffic manager:
+/// `STOPPED_VELOCITY_THRESHOLD`), m/s.
+pub const STUCK_MPS: f64 = 0.8;
+/// A vehicle that has stood this long, not held at a light, is stuck
+/// (`BLOCKED_TIME_THRESHOLD`), s.
+pub const STUCK_AFTER_S: f64 = 90.0;
+/// At most one stuck vehicle is taken out per this interval
+/// (`DELTA_TIME_BETWEEN_DESTRUCTIONS`), s.
+pub const STUCK_REMOVAL_EVERY_S: f64 = 10.0;
+/// A vehicle this close to the stop line of a red or amber light is held at it, m.
+const AT_LIGHT_M: f64 = 10.0;
 const SPAWN_MIN_M: f64 = 110.0;
 const SPAWN_MAX_M: f64 = 190.0;
 const DESPAWN_M: f64 = 230.0;
@@ -364,6 +384,7 @@ impl Traffic {
             draw: Stream::new(seed, &[0x7AFF]),
             next_id: 1,
             fired: vec![false; route.events.len()],
+            last_removal_s: f64::NEG_INFINITY,
         };
         let (ego_p, _) = route.pose(0.0);
         for _ in 0..params.vehicles {
@@ -428,6 +449,7 @@ impl Traffic {
                 arrived_s: None,
                 admitted: None,
                 braking: false,
+                idle_since_s: None,
                 draw,
             };
             npc.extend(town, 80.0);
@@ -680,6 +702,7 @@ impl Traffic {
                 }
             }
             // Junction ahead.
+            let mut held_at_light = false;
             let mut v0 = n.v_desired;
             let mut line_gap = f64::INFINITY;
             if let Seg::Lane { node, d } = n.segs[0] {
@@ -693,6 +716,10 @@ impl Traffic {
                         v0 = v0.min(if turn_of(din, dout) == 3 { 4.0 } else { 5.5 });
                     }
                     let control = town.nodes[b].control;
+                    held_at_light = control == Control::Signal
+                        && n.admitted != Some(b)
+                        && to_line < AT_LIGHT_M
+                        && town.light(b, din, t_s) != Light::Green;
                     if n.admitted != Some(b) && to_line < 40.0 {
                         let mut must_stop = false;
                         match control {
@@ -779,6 +806,9 @@ impl Traffic {
             let v_new = (v + a * dt).max(0.0);
             n.s_m += 0.5 * (v + v_new) * dt;
             n.speed_mps = v_new;
+            if n.idle_since_s.is_none() || v_new > STUCK_MPS || held_at_light {
+                n.idle_since_s = Some(t_s);
+            }
             while n.segs.len() > 1 {
                 let len = n.seg_len(town, 0);
                 if n.s_m <= len {
@@ -796,12 +826,39 @@ impl Traffic {
             }
             n.update_pose(town);
         }
+        self.remove_stuck(t_s);
         // Respawn those that drifted away.
         let far: Vec<usize> = (0..self.npcs.len())
             .filter(|&k| !within(self.npcs[k].pos, ego_pos, DESPAWN_M))
             .collect();
         for k in far.into_iter().rev() {
             self.npcs.remove(k);
+        }
+    }
+
+    /// Takes out the vehicle that has been stuck longest (see the module's documentation),
+    /// if any has been for [`STUCK_AFTER_S`] and none was taken out in the last
+    /// [`STUCK_REMOVAL_EVERY_S`]; [`Traffic::refill`] puts another in elsewhere.
+    fn remove_stuck(&mut self, t_s: f64) {
+        if t_s - self.last_removal_s < STUCK_REMOVAL_EVERY_S {
+            return;
+        }
+        let longest = self
+            .npcs
+            .iter()
+            .enumerate()
+            .filter_map(|(k, n)| n.idle_since_s.map(|t0| (k, t0)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((k, t0)) = longest
+            && t_s - t0 >= STUCK_AFTER_S
+        {
+            log::trace!(
+                "truth t {t_s:.1} npc {} stuck for {:.0} s: taken out",
+                self.npcs[k].id,
+                t_s - t0
+            );
+            self.npcs.remove(k);
+            self.last_removal_s = t_s;
         }
     }
 
@@ -1032,6 +1089,36 @@ fn walker_waits(vehicles: &[(P2, f64)], from: P2, to: P2) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_vehicle_stuck_longest_is_taken_out_one_at_a_time() {
+        let town = Town::generate(crate::town::TownParams::default(), 1, 0);
+        let route = crate::route::generate(&town, 600.0, 6.0, &mut Draw::new(5, &[1])).unwrap();
+        let mut t = Traffic::new(&town, &route, TrafficParams::default(), 3);
+        assert!(t.npcs.len() > 3);
+        for n in &mut t.npcs {
+            n.idle_since_s = Some(200.0);
+        }
+        let (a, b) = (t.npcs[1].id, t.npcs[2].id);
+        t.npcs[1].idle_since_s = Some(100.0);
+        t.npcs[2].idle_since_s = Some(105.0);
+        let n0 = t.npcs.len();
+        // Stood 89 s: not yet.
+        t.remove_stuck(189.0);
+        assert_eq!(t.npcs.len(), n0);
+        // 90 s: the one standing longest goes; the next only 10 s later.
+        t.remove_stuck(190.0);
+        assert_eq!(t.npcs.len(), n0 - 1);
+        assert!(t.npcs.iter().all(|n| n.id != a));
+        t.remove_stuck(199.0);
+        assert_eq!(t.npcs.len(), n0 - 1);
+        t.remove_stuck(200.0);
+        assert_eq!(t.npcs.len(), n0 - 2);
+        assert!(t.npcs.iter().all(|n| n.id != b));
+        // The rest stood since 200 s: none is stuck at 250 s.
+        t.remove_stuck(250.0);
+        assert_eq!(t.npcs.len(), n0 - 2);
+    }
 
     #[test]
     fn a_walker_crosses_in_front_of_a_car_standing_for_them_not_of_one_on_the_crossing() {
