@@ -330,6 +330,10 @@ pub struct Traffic {
     fired: Vec<bool>,
     /// When a stuck vehicle was last taken out, s.
     last_removal_s: f64,
+    /// The ego's turn at an all-way stop: the route junction it stopped before (its index
+    /// in the route's junctions) and when it stood at the line, s; kept until it has left
+    /// the junction.
+    ego_stop: Option<(usize, f64)>,
 }
 
 /// What the traffic needs to know about the ego each update.
@@ -385,6 +389,7 @@ impl Traffic {
             next_id: 1,
             fired: vec![false; route.events.len()],
             last_removal_s: f64::NEG_INFINITY,
+            ego_stop: None,
         };
         let (ego_p, _) = route.pose(0.0);
         for _ in 0..params.vehicles {
@@ -541,11 +546,27 @@ impl Traffic {
     /// One update of `dt` seconds at game time `t_s`.
     pub fn step(&mut self, town: &Town, route: &Route, ego: &EgoView, t_s: f64, dt: f64) {
         self.fire_events(route, ego);
-        self.step_vehicles(town, ego, t_s, dt);
+        self.ego_stop = ego_stop_turn(self.ego_stop, route, ego, t_s);
+        let ego_turn = self.ego_stop.and_then(|(j, t0)| {
+            route
+                .junctions
+                .get(j)
+                .map(|rj| (rj.node, (rj.din, rj.dout), t0))
+        });
+        self.step_vehicles(town, ego, ego_turn, t_s, dt);
         self.step_walkers(town, ego, t_s, dt);
     }
 
-    fn step_vehicles(&mut self, town: &Town, ego: &EgoView, t_s: f64, dt: f64) {
+    /// `ego_turn`: the node of the all-way stop the ego stood at, its path through it and
+    /// when it stood at the line (see [`ego_stop_turn`]).
+    fn step_vehicles(
+        &mut self,
+        town: &Town,
+        ego: &EgoView,
+        ego_turn: Option<(usize, (usize, usize), f64)>,
+        t_s: f64,
+        dt: f64,
+    ) {
         let ego_box = ego_box(&ego.state);
         let ego_pts = [
             ego.state.point(-1.2, 0.0),
@@ -738,11 +759,20 @@ impl Traffic {
                                 let waited = n.stopped_at_line_s.is_some_and(|t0| t_s - t0 >= 1.0);
                                 must_stop = !waited;
                                 if waited {
+                                    let arrived = n.arrived_s.unwrap_or(t_s);
                                     let first = waiting
                                         .iter()
                                         .filter(|w| w.0 == b && w.2 != n.id)
-                                        .all(|w| w.1 >= n.arrived_s.unwrap_or(t_s));
-                                    must_stop = !first;
+                                        .all(|w| w.1 >= arrived);
+                                    // The ego takes its turn too: one that stood at
+                                    // this junction's line first goes first, on a
+                                    // crossing path, until it has left the junction.
+                                    let ego_first = ego_turn.is_some_and(|(m, path, t0)| {
+                                        m == b
+                                            && t0 <= arrived
+                                            && town.conflicts(b, (din, dout), path)
+                                    });
+                                    must_stop = !first || ego_first;
                                 }
                             }
                             Control::None => {}
@@ -1027,6 +1057,36 @@ pub fn ego_holds(
     ahead && dist(ego_pos, node) < ZONE_M + 6.0 && path.iter().any(|&p| within(p, ego_pos, room))
 }
 
+/// The ego's turn at an all-way stop, updated: it takes one when it stands (below
+/// 0.1 m/s) within 6 m before the stop line of a route junction with stop signs (`t_s`
+/// then), and keeps it until its route progress passes the junction's exit, or it is no
+/// longer before or in that junction. `None`: no turn taken.
+pub fn ego_stop_turn(
+    turn: Option<(usize, f64)>,
+    route: &Route,
+    ego: &EgoView,
+    t_s: f64,
+) -> Option<(usize, f64)> {
+    let s = ego.route_s_m;
+    if let Some((j, t0)) = turn
+        && let Some(rj) = route.junctions.get(j)
+        && s >= rj.s_stop_line_m - 8.0
+        && s <= rj.s_exit_m
+    {
+        return Some((j, t0));
+    }
+    (ego.state.speed_mps < 0.1)
+        .then(|| {
+            route.junctions.iter().position(|rj| {
+                rj.control == Control::Stop
+                    && s >= rj.s_stop_line_m - 6.0
+                    && s <= rj.s_stop_line_m + 1.0
+            })
+        })
+        .flatten()
+        .map(|j| (j, t_s))
+}
+
 /// The quadrant reached when walking along a block side from quadrant `q` (along x when
 /// `along_x`): the same side of the street, the other end of the block.
 fn along(q: usize, along_x: bool) -> usize {
@@ -1089,6 +1149,49 @@ fn walker_waits(vehicles: &[(P2, f64)], from: P2, to: P2) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_ego_takes_its_turn_at_an_all_way_stop_and_keeps_it_through_the_junction() {
+        let town = Town::generate(crate::town::TownParams::default(), 1, 0);
+        let mut draw = Draw::new(5, &[1]);
+        let (route, j) = (0..50)
+            .find_map(|_| {
+                let r = crate::route::generate(&town, 1500.0, 6.0, &mut draw).ok()?;
+                let j = r
+                    .junctions
+                    .iter()
+                    .position(|rj| rj.control == Control::Stop)?;
+                Some((r, j))
+            })
+            .expect("a route through an all-way stop");
+        let rj = route.junctions[j];
+        let at = |s: f64, v: f64| EgoView {
+            state: VehicleState {
+                speed_mps: v,
+                ..VehicleState::default()
+            },
+            route_s_m: s,
+        };
+        // Rolling up to the line, or standing 10 m short of it: no turn.
+        assert_eq!(
+            ego_stop_turn(None, &route, &at(rj.s_stop_line_m - 2.0, 3.0), 10.0),
+            None
+        );
+        assert_eq!(
+            ego_stop_turn(None, &route, &at(rj.s_stop_line_m - 10.0, 0.0), 10.0),
+            None
+        );
+        // Standing 2 m before it: the turn, from then; kept while it drives through.
+        let turn = ego_stop_turn(None, &route, &at(rj.s_stop_line_m - 2.0, 0.0), 10.0);
+        assert_eq!(turn, Some((j, 10.0)));
+        let mid = 0.5 * (rj.s_entry_m + rj.s_exit_m);
+        assert_eq!(ego_stop_turn(turn, &route, &at(mid, 4.0), 14.0), turn);
+        // Out of the junction: given up.
+        assert_eq!(
+            ego_stop_turn(turn, &route, &at(rj.s_exit_m + 1.0, 6.0), 16.0),
+            None
+        );
+    }
 
     #[test]
     fn the_vehicle_stuck_longest_is_taken_out_one_at_a_time() {
