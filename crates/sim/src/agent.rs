@@ -134,7 +134,7 @@ pub struct Baseline {
     pub plans: u64,
     /// Planner errors.
     pub plan_errors: u64,
-    /// The last perception, in words (filled when trace logging is on).
+    /// The last perception, in words (filled when debug logging is on).
     pub debug: String,
     red_stop_at_m: Option<f64>,
     sign_stop_at_m: Option<f64>,
