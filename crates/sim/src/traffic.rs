@@ -737,14 +737,14 @@ impl Traffic {
                         v0 = v0.min(if turn_of(din, dout) == 3 { 4.0 } else { 5.5 });
                     }
                     let control = town.nodes[b].control;
-                    held_at_light = control == Control::Signal
-                        && n.admitted != Some(b)
-                        && to_line < AT_LIGHT_M
-                        && town.light(b, din, t_s) != Light::Green;
+                    // Green where there is no signal.
+                    let light = town.light(b, din, t_s);
+                    held_at_light =
+                        n.admitted != Some(b) && to_line < AT_LIGHT_M && light != Light::Green;
                     if n.admitted != Some(b) && to_line < 40.0 {
                         let mut must_stop = false;
                         match control {
-                            Control::Signal => match town.light(b, din, t_s) {
+                            Control::Signal => match light {
                                 Light::Red => must_stop = true,
                                 Light::Amber => must_stop = to_line > v * v / (2.0 * 3.5),
                                 Light::Green => {}
