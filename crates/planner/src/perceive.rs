@@ -12,8 +12,8 @@
 
 use crate::vision::{
     LampColour, Refs, Rgb, Sample, Smoothed, View, chroma, gain_of, is_object, is_road,
-    is_sign_red, is_white_paint, is_yellow_paint, lamp_colour, lum, road_distance, round_exact,
-    round_pos, round_px,
+    is_sign_red, is_white_paint, is_yellow_paint, lamp_colour, lamp_colour_over, lum,
+    road_distance, round_exact, round_pos, round_px,
 };
 use fogline_types::clip::{CameraId, EgoPose, PlannerInput};
 
@@ -1686,7 +1686,8 @@ fn lamp_blocks(
         let mut u = u_range.0;
         while u + k <= u_range.1 {
             if let Some(s) = block(view, u, v, k)
-                && let Some(col) = lamp_colour(s, view.white)
+                && let Some(col) =
+                    lamp_colour(s, view.white).or_else(|| veiled_lamp(view, s, (u, v), k))
             {
                 out.push((col, u, v));
             }
@@ -1695,6 +1696,44 @@ fn lamp_blocks(
         v += step;
     }
     (k, out)
+}
+
+/// The colour of a lamp washed out by a veil ([`lamp_colour_over`]), read against its
+/// housing: the darkest of the blocks around block `(u, v)`, two and four block sides away
+/// in the eight directions (a lamp's housing surrounds it; the unlit lamps above and below
+/// are as dark). Only bright blocks with some hue are tested: the grey sky is not.
+fn veiled_lamp(view: &View<'_>, s: Sample, (u, v): (usize, usize), k: usize) -> Option<LampColour> {
+    let [r, g, b] = s.c;
+    let top = r.max(g);
+    if top + 2.0 * s.s < 0.9 * view.white || top - r.min(g).min(b) < 0.2 * view.white + 3.0 * s.s {
+        return None;
+    }
+    let mut housing: Option<Sample> = None;
+    for step in [2 * k.max(1), 4 * k.max(1)] {
+        let step = step as isize;
+        for (du, dv) in [
+            (-1, -1),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ] {
+            let (bu, bv) = (u as isize + du * step, v as isize + dv * step);
+            if bu < 0 || bv < 0 || bu as usize + k > view.width() || bv as usize + k > view.height()
+            {
+                continue;
+            }
+            if let Some(n) = block(view, bu as usize, bv as usize, k)
+                && housing.is_none_or(|h| lum(n.c) < lum(h.c))
+            {
+                housing = Some(n);
+            }
+        }
+    }
+    lamp_colour_over(s, housing?, view.white)
 }
 
 /// Lit lamps above the horizon: the colour with the most lamp pixels in one compact

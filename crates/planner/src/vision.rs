@@ -497,6 +497,48 @@ pub fn lamp_colour(x: Sample, white: f32) -> Option<LampColour> {
     None
 }
 
+/// A lit lamp seen through a veil (fog, heavy rain): the veil adds the same airlight to
+/// the lamp and to the dark housing around it, which washes the lamp's hue out towards
+/// grey (an amber lamp in hard rain reads (233, 188, 100), its housing (92, 92, 92)). What
+/// the lamp adds to its housing, `x − housing`, carries the lamp's own hue, so the hue
+/// tests of [`lamp_colour`] are made on that difference; the brightness test stays on the
+/// lamp itself. The housing must be a dark, nearly grey box (darker than 60 % of the lamp's
+/// brightest channel); what the lamp adds must be a quarter of the white level or more and
+/// a signal's pure colour (its weakest channel at most 15 % of its strongest; red with
+/// green and blue under 30 % of it), which a lit surface beside a shadow is not.
+#[inline]
+pub fn lamp_colour_over(x: Sample, housing: Sample, white: f32) -> Option<LampColour> {
+    let top = x.c[0].max(x.c[1]);
+    let m_x = 2.0 * x.s;
+    if top + m_x < 0.9 * white {
+        return None;
+    }
+    let [hr, hg, hb] = housing.c;
+    let h_top = hr.max(hg).max(hb);
+    let h_grey = h_top - hr.min(hg).min(hb) < 0.1 * white + 3.0 * housing.s;
+    if !(h_grey && h_top < 0.6 * top) {
+        return None;
+    }
+    let [r, g, b] = [x.c[0] - hr, x.c[1] - hg, x.c[2] - hb];
+    let m = 2.0 * x.s.hypot(housing.s);
+    // What the lamp adds is a signal's saturated colour: next to nothing in its weakest
+    // channel (a lit surface's hue is not that pure).
+    if r.max(g) < 0.25 * white + m || r.min(g).min(b) > 0.15 * r.max(g) + m {
+        return None;
+    }
+    // A signal red adds red alone (a tan or brown surface adds some green as well).
+    if g + m < 0.3 * r && b + m < 0.3 * r {
+        return Some(LampColour::Red);
+    }
+    if g > 0.5 * r + m && g + m < 0.86 * r && b + m < 0.3 * r {
+        return Some(LampColour::Amber);
+    }
+    if r + m < 0.55 * g && b + m < 0.75 * g {
+        return Some(LampColour::Green);
+    }
+    None
+}
+
 /// Sign red: saturated red (red well above 1.8 times green and blue), not necessarily
 /// bright. The margin is 2.5 standard errors of `r − 1.8·max(g, b)`.
 #[inline]
@@ -650,5 +692,63 @@ impl PlaneProjector {
             self.centre.0 + (self.across[0] + y * self.across[1] + z * self.across[2]) * inv,
             self.centre.1 + (self.down[0] + y * self.down[1] + z * self.down[2]) * inv,
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(c: Rgb) -> Sample {
+        Sample { c, s: 0.0 }
+    }
+
+    /// Pixels read from rendered frames: a signal head in mid rain at sunset (white level
+    /// 204), and the surfaces that the test must not take for lamps (from clear and dark
+    /// planner-eval clips).
+    #[test]
+    fn a_lamp_washed_out_by_a_veil_is_read_against_its_housing() {
+        let amber = at([233.0, 188.0, 100.0]);
+        let red = at([231.0, 118.0, 112.0]);
+        let housing = at([92.0, 92.0, 92.0]);
+        // The veil lifts the amber lamp's blue above what a lit amber lamp shows.
+        assert_eq!(lamp_colour(amber, 204.0), None);
+        assert_eq!(
+            lamp_colour_over(amber, housing, 204.0),
+            Some(LampColour::Amber)
+        );
+        assert_eq!(
+            lamp_colour_over(red, at([101.0, 101.0, 101.0]), 204.0),
+            Some(LampColour::Red)
+        );
+        // The grey sky beside the head is no lamp; nor is a lamp over a housing as bright
+        // as itself or over a coloured one.
+        assert_eq!(lamp_colour_over(at([204.0; 3]), housing, 204.0), None);
+        assert_eq!(lamp_colour_over(amber, at([150.0; 3]), 204.0), None);
+        assert_eq!(lamp_colour_over(amber, at([92.0, 60.0, 60.0]), 204.0), None);
+        // Tan and brown surfaces beside a shadow, in a clear and in a dark frame.
+        for (x, h, white) in [
+            ([205.0, 150.0, 118.0], [115.0, 115.0, 114.0], 208.0),
+            ([178.0, 136.0, 120.0], [101.0, 104.0, 106.0], 193.0),
+            ([85.0, 62.0, 47.0], [28.0, 29.0, 30.0], 85.0),
+        ] {
+            assert_eq!(lamp_colour_over(at(x), at(h), white), None, "{x:?}");
+        }
+        // Noise widens the margins: a lamp that barely passes clean fails under heavy noise.
+        let noisy = Sample {
+            c: amber.c,
+            s: 40.0,
+        };
+        assert_eq!(
+            lamp_colour_over(
+                noisy,
+                Sample {
+                    c: housing.c,
+                    s: 40.0
+                },
+                204.0
+            ),
+            None
+        );
     }
 }
