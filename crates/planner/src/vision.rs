@@ -520,7 +520,9 @@ pub fn lamp_colour_over(x: Sample, housing: Sample, white: f32) -> Option<LampCo
         return None;
     }
     let [r, g, b] = [x.c[0] - hr, x.c[1] - hg, x.c[2] - hb];
-    let m = 2.0 * x.s.hypot(housing.s);
+    // The housing is the darkest of several readings, biased low by about two of its
+    // standard errors under noise: that bias is added to the margin.
+    let m = 2.0 * x.s.hypot(housing.s) + 2.0 * housing.s;
     // What the lamp adds is a signal's saturated colour: next to nothing in its weakest
     // channel (a lit surface's hue is not that pure).
     if r.max(g) < 0.25 * white + m || r.min(g).min(b) > 0.15 * r.max(g) + m {
