@@ -1709,8 +1709,8 @@ fn veiled_lamp(view: &View<'_>, s: Sample, (u, v): (usize, usize), k: usize) -> 
         return None;
     }
     let mut housing: Option<Sample> = None;
-    for step in [2 * k.max(1), 4 * k.max(1)] {
-        let step = step as isize;
+    // `k` is at least 1 (see `lamp_patch`).
+    for step in [2 * k as isize, 4 * k as isize] {
         for (du, dv) in [
             (-1, -1),
             (0, -1),

@@ -509,8 +509,7 @@ pub fn lamp_colour(x: Sample, white: f32) -> Option<LampColour> {
 #[inline]
 pub fn lamp_colour_over(x: Sample, housing: Sample, white: f32) -> Option<LampColour> {
     let top = x.c[0].max(x.c[1]);
-    let m_x = 2.0 * x.s;
-    if top + m_x < 0.9 * white {
+    if top + 2.0 * x.s < 0.9 * white {
         return None;
     }
     let [hr, hg, hb] = housing.c;
