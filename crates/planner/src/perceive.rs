@@ -1685,7 +1685,10 @@ fn lamp_blocks(
     while v + k <= v_range.1 {
         let mut u = u_range.0;
         while u + k <= u_range.1 {
+            // Both lamp tests start by asking for the white level (a lamp is an emitter):
+            // most blocks end at that test, here without a call.
             if let Some(s) = block(view, u, v, k)
+                && s.c[0].max(s.c[1]) + 2.0 * s.s >= 0.9 * view.white
                 && let Some(col) =
                     lamp_colour(s, view.white).or_else(|| veiled_lamp(view, s, (u, v), k))
             {

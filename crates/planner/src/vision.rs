@@ -173,7 +173,7 @@ impl<'a> View<'a> {
                 }
             }
             for c in 0..3 {
-                out[c] = acc[c] as f32 / n as f32;
+                out[c] = acc[c] as f32 / count_f32(n);
             }
             return Some((self.uncensor(out), n));
         }
@@ -191,7 +191,7 @@ impl<'a> View<'a> {
         );
         for k in 0..3 {
             let s = a[k] + b[k] - c[k] - d[k];
-            out[k] = s as f32 / n as f32;
+            out[k] = s as f32 / count_f32(n);
         }
         Some((self.uncensor(out), n))
     }
@@ -212,8 +212,8 @@ impl<'a> View<'a> {
         if !(u >= 0.0 && v >= 0.0 && u < self.width() as f64 && v < self.height() as f64) {
             return None;
         }
-        let x0 = round_px(u - kw as f64 / 2.0);
-        let y0 = round_px(v - kh as f64 / 2.0);
+        let x0 = round_px(u - index_f64(kw) / 2.0);
+        let y0 = round_px(v - index_f64(kh) / 2.0);
         self.rect_sample(x0, y0, x0 + kw.max(1) as isize, y0 + kh.max(1) as isize)
     }
 
@@ -222,7 +222,7 @@ impl<'a> View<'a> {
     pub fn rect_sample(&self, x0: isize, y0: isize, x1: isize, y1: isize) -> Option<Sample> {
         self.rect(x0, y0, x1, y1).map(|(c, n)| Sample {
             c,
-            s: self.sigma / (n as f32).sqrt(),
+            s: self.sigma / count_f32(n).sqrt(),
         })
     }
 
@@ -344,11 +344,26 @@ pub fn round_exact(x: f64) -> isize {
 #[inline]
 pub fn round_pos(x: f64) -> usize {
     if (0.0..4.0e15).contains(&x) {
-        let t = x as usize;
-        t + usize::from(x - t as f64 >= 0.5)
+        let t = x as i64;
+        t as usize + usize::from(x - t as f64 >= 0.5)
     } else {
         x.round() as usize
     }
+}
+
+/// A pixel count as `f32` (exact below 2^24, as every patch is), converted through `i32`:
+/// baseline x86-64 converts `i32` in one instruction and `usize` in a branchy sequence,
+/// and patch means are the inner loop of every reading.
+#[inline(always)]
+fn count_f32(n: usize) -> f32 {
+    n as i32 as f32
+}
+
+/// A pixel index or size as `f64`, through `i64` (one instruction; `usize` needs a branchy
+/// sequence on baseline x86-64). Exact, as the value is far below 2^53.
+#[inline(always)]
+fn index_f64(n: usize) -> f64 {
+    n as i64 as f64
 }
 
 /// A patch mean and the standard deviation of its noise per channel.
@@ -628,14 +643,28 @@ impl Smoothed {
             px.reserve(w * h);
             for y in y0..y1 {
                 let (c0, c1) = (y.saturating_sub(r).max(ay) - ay, (y + r + 1).min(by) - ay);
+                // The table's two rows that bound this output row, sliced once.
+                let (top, bottom) = (
+                    &sat[c0 * stride..(c0 + 1) * stride],
+                    &sat[c1 * stride..(c1 + 1) * stride],
+                );
+                let entry = |row: &[u32], i: usize| -> [u32; 3] {
+                    row.get(i * 3..i * 3 + 3)
+                        .and_then(|e| e.try_into().ok())
+                        .unwrap_or([0; 3])
+                };
                 for x in x0..x1 {
                     let (a0, a1) = (x.saturating_sub(r).max(ax) - ax, (x + r + 1).min(bx) - ax);
-                    let n = ((a1 - a0) * (c1 - c0)) as f32;
+                    let n = count_f32((a1 - a0) * (c1 - c0));
+                    let (p, q, t, u) = (
+                        entry(bottom, a1),
+                        entry(top, a0),
+                        entry(top, a1),
+                        entry(bottom, a0),
+                    );
                     let mut v = [0f32; 3];
                     for (c, o) in v.iter_mut().enumerate() {
-                        let s = sat[c1 * stride + a1 * 3 + c] + sat[c0 * stride + a0 * 3 + c]
-                            - sat[c0 * stride + a1 * 3 + c]
-                            - sat[c1 * stride + a0 * 3 + c];
+                        let s = p[c] + q[c] - t[c] - u[c];
                         *o = s as f32 / n;
                     }
                     px.push(v);
@@ -650,12 +679,14 @@ impl Smoothed {
     /// rectangle.
     #[inline(always)]
     pub fn bilinear(&self, u: f64, v: f64) -> Option<Rgb> {
-        let (x, y) = (u - 0.5 - self.x0 as f64, v - 0.5 - self.y0 as f64);
-        if !(x >= 0.0 && y >= 0.0 && x < (self.w - 1) as f64 && y < (self.h - 1) as f64) {
+        let (x, y) = (u - 0.5 - index_f64(self.x0), v - 0.5 - index_f64(self.y0));
+        if !(x >= 0.0 && y >= 0.0 && x < index_f64(self.w - 1) && y < index_f64(self.h - 1)) {
             return None;
         }
-        let (xi, yi) = (x as usize, y as usize);
+        // Both are non-negative and below the rectangle's size here.
+        let (xi, yi) = (x as i64, y as i64);
         let (fx, fy) = ((x - xi as f64) as f32, (y - yi as f64) as f32);
+        let (xi, yi) = (xi as usize, yi as usize);
         // The four neighbours, from one bounds-checked window.
         let i = yi * self.w + xi;
         let q = &self.px[i..i + self.w + 2];
