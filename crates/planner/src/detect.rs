@@ -232,30 +232,52 @@ pub fn find_deficits(
         // The smallest deficit worth reporting: a 2-pixel ring, then a 1-pixel margin, around
         // at least 2 × 2 pixels of fill.
         if x1 - x0 < 8 || y1 - y0 < 8 {
-            // Too small for a fill: an outline with no room inside (a distant lamp's mask) is
-            // a solid red bar, at least 2 px wide, 8 px tall and twice as tall as wide, red
-            // nearly throughout (a lit lamp is round, a sign's face as wide as tall).
+            // Too small for a fill with a margin: the mask of a distant lamp, tall and narrow
+            // (a signal head), at least 2 px wide, 6 px tall and twice as tall as wide (a lit
+            // lamp is round, a sign's face as wide as tall). With no room inside, its outline
+            // is a solid red bar, red nearly throughout; from 5 px across, a narrow ring
+            // around a black core. The red is the outline's own, saturated (a painted lamp or
+            // a red car's flank is lit, shaded and mixed with its surroundings).
             let (bw, bh) = (x1 - x0, y1 - y0);
-            if bw >= 2 && bh >= 8 && bh >= 2 * bw {
-                // The outline's own red, saturated (a painted lamp or a red car's flank is
-                // lit, shaded and mixed with its surroundings).
+            if bw >= 2 && bh >= 6 && bh >= 2 * bw {
                 let pure = |i: usize| {
                     let p = &rgb[i * 3..i * 3 + 3];
-                    p[0] >= 230 && p[1] <= 30 && p[2] <= 30
+                    red[i] && p[0] >= 230 && p[1] <= 30 && p[2] <= 30
                 };
-                let n = (y0..y1)
-                    .flat_map(|y| (x0..x1).map(move |x| y * width + x))
-                    .filter(|&i| red[i] && pure(i))
-                    .count();
-                let share = n as f64 / (bw * bh) as f64;
-                if share >= 0.8 {
+                let (mut all, mut ring, mut ring_pure) = (0usize, 0usize, 0usize);
+                let (mut core, mut core_lum) = (0usize, 0u64);
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let i = y * width + x;
+                        let p = pure(i);
+                        all += usize::from(p);
+                        if x < x0 + 2 || x >= x1 - 2 || y < y0 + 2 || y >= y1 - 2 {
+                            ring += 1;
+                            ring_pure += usize::from(p);
+                        } else {
+                            core += 1;
+                            let q = &rgb[i * 3..i * 3 + 3];
+                            core_lum += u64::from(q[0]) + u64::from(q[1]) + u64::from(q[2]);
+                        }
+                    }
+                }
+                let share = all as f64 / (bw * bh) as f64;
+                let ring_share = ring_pure as f64 / ring.max(1) as f64;
+                let core_lum = if core > 0 {
+                    core_lum as f64 / (3 * core) as f64
+                } else {
+                    0.0
+                };
+                let bar = share >= 0.8;
+                let narrow_ring = bw >= 5 && core > 0 && ring_share >= 0.8 && core_lum <= 40.0;
+                if bar || narrow_ring {
                     out.push(DeficitSeen {
                         x0: x0 as u32,
                         y0: y0 as u32,
                         x1: x1 as u32,
                         y1: y1 as u32,
-                        outline: share,
-                        fill_lum: 0.0,
+                        outline: if bar { share } else { ring_share },
+                        fill_lum: if bar { 0.0 } else { core_lum },
                     });
                 }
             }
@@ -381,9 +403,28 @@ mod tests {
         // A lit red lamp: a 4 × 4 disc-like blob; a wide red bar (a tail lamp).
         paint(&mut rgb, w, (80, 10, 84, 14), |_, _| [255, 0, 0]);
         paint(&mut rgb, w, (60, 50, 76, 53), |_, _| [255, 0, 0]);
+        // Farther still: a bar 3 px wide and 7 tall.
+        paint(&mut rgb, w, (100, 10, 103, 17), |_, _| [255, 0, 0]);
+        // A narrow mask with a black core (6 × 21, as a signal head's mask at 40 m in the
+        // closed loop's tele view), and the same ring around a lit grey core, which is not
+        // a mask.
+        let ring = |x0: usize, y0: usize, core: [u8; 3]| {
+            move |x: usize, y: usize| {
+                if x < x0 + 2 || x >= x0 + 4 || y < y0 + 2 || y >= y0 + 19 {
+                    [255, 0, 0]
+                } else {
+                    core
+                }
+            }
+        };
+        paint(&mut rgb, w, (10, 30, 16, 51), ring(10, 30, [0, 0, 0]));
+        paint(&mut rgb, w, (25, 30, 31, 51), ring(25, 30, [160, 160, 160]));
         let got = find_deficits(&rgb, w, h).unwrap();
         let boxes: Vec<_> = got.iter().map(|d| (d.x0, d.y0, d.x1, d.y1)).collect();
-        assert_eq!(boxes, vec![(40, 10, 43, 20)]);
+        assert_eq!(
+            boxes,
+            vec![(40, 10, 43, 20), (100, 10, 103, 17), (10, 30, 16, 51)]
+        );
     }
 
     #[test]
