@@ -3,9 +3,12 @@
 #   1. the Python peer of the interop tests (carla-driver-interface, an independent
 #      implementation of AlpaSim's egodriver contract) in target/pyenv, once;
 #   2. Debian's chromium for the report's browser test (scripts/browser-deps.sh), once;
-#   3. every test of the workspace with cargo-nextest (extra arguments are passed on).
+#   3. every test of the workspace with cargo-nextest (extra arguments are passed on);
+#   4. the Python package: wheel built and installed into target/pyenv, its pytest suite
+#      (scripts/python-package.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/python-peers.sh >/dev/null
 scripts/browser-deps.sh >/dev/null
-exec cargo nextest run "$@"
+cargo nextest run "$@"
+scripts/python-package.sh

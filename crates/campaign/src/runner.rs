@@ -277,7 +277,7 @@ pub fn condition_frames<'c>(
                     FrameSource::Captured(j) => {
                         let f = &cam.frames[j];
                         let input = FrameInput {
-                            frame: &f.image,
+                            frame: f.image.view(),
                             key: FrameKey::new(key, c as u64, j as u64),
                             depth: f.depth.as_ref(),
                             boxes: if p.uses_boxes() { &f.boxes } else { &[] },

@@ -574,7 +574,7 @@ fn process(job: &Job<'_>, t: &Task) -> Result<FrameRecord> {
                 .map(|v| v.iter().map(|(l, b)| (b.clone(), *l)).unzip())
                 .unwrap_or_default();
             let input = FrameInput {
-                frame: &frame,
+                frame: frame.view(),
                 key: FrameKey::new(t.clip, 0, name_id(&src.rel)),
                 depth: depth.as_ref(),
                 boxes: &boxes,
@@ -764,7 +764,7 @@ impl Bench {
         let p = Perturbation::parse(name)?.prepare(0)?;
         let ms = self.time(|b| {
             let input = FrameInput {
-                frame: &b.frame,
+                frame: b.frame.view(),
                 key: FrameKey::new(1, 0, 0),
                 depth: (extra == "depth").then_some(&b.depth),
                 boxes: if extra == "boxes" { &b.boxes } else { &[] },

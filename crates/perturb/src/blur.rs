@@ -4,12 +4,12 @@
 //! arithmetic, so they are exact and platform-independent. Neighbours outside the frame are
 //! the nearest edge pixel (replicate padding), so every output averages exactly `n` samples.
 
-use crate::frame::Frame;
+use crate::frame::{FrameMut, FrameRef};
 
 /// Defocus: the mean over a disk, every offset `(dx, dy)` with `dx² + dy² <= r²`
 /// (`n = Σ_dy (2·⌊√(r² − dy²)⌋ + 1)` samples). Row runs are summed from per-row prefix sums,
 /// so the cost is `O(W·H·(2r + 1))`. `r < 1` is the identity.
-pub(crate) fn defocus(src: &Frame, dst: &mut Frame, radius: f64) {
+pub(crate) fn defocus(src: FrameRef<'_>, dst: &mut FrameMut<'_>, radius: f64) {
     let rr = radius.floor() as usize;
     let half: Vec<usize> = (0..=rr)
         .map(|dy| {
@@ -102,7 +102,7 @@ pub(crate) fn motion_taps(length: u32, angle_deg: f64) -> Vec<(i64, i64)> {
 
 /// Motion blur: the mean over the taps of [`motion_taps`] (`n = length`). `length = 1` is the
 /// identity.
-pub(crate) fn motion(src: &Frame, dst: &mut Frame, length: u32, angle_deg: f64) {
+pub(crate) fn motion(src: FrameRef<'_>, dst: &mut FrameMut<'_>, length: u32, angle_deg: f64) {
     let taps = motion_taps(length, angle_deg);
     let div = RoundDiv::new(length, 255 * length);
     let (w, h) = (src.width() as i64, src.height() as i64);
@@ -146,7 +146,7 @@ pub(crate) fn motion(src: &Frame, dst: &mut Frame, length: u32, angle_deg: f64) 
 
 /// Pixelation: the frame is cut into `block × block` tiles from the top-left corner (edge
 /// tiles are smaller) and every pixel takes its tile's mean. `block = 1` is the identity.
-pub(crate) fn pixelate(src: &Frame, dst: &mut Frame, block: u32) {
+pub(crate) fn pixelate(src: FrameRef<'_>, dst: &mut FrameMut<'_>, block: u32) {
     let b = block as usize;
     let (w, h) = (src.width() as usize, src.height() as usize);
     let data = src.data();
@@ -177,6 +177,7 @@ pub(crate) fn pixelate(src: &Frame, dst: &mut Frame, block: u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Frame;
 
     fn frame(w: u32, h: u32) -> Frame {
         let data = (0..w * h * 3).map(|i| (i * 37 % 251) as u8).collect();
@@ -188,7 +189,7 @@ mod tests {
         let src = frame(9, 7);
         let mut dst = src.clone();
         let r = 2.5;
-        defocus(&src, &mut dst, r);
+        defocus(src.view(), &mut dst.view_mut(), r);
         for y in 0..7i64 {
             for x in 0..9i64 {
                 for c in 0..3 {
@@ -218,7 +219,7 @@ mod tests {
         let src = frame(11, 6);
         for (len, angle) in [(5, 0.0), (4, 30.0), (7, 90.0), (15, 200.0)] {
             let mut dst = src.clone();
-            motion(&src, &mut dst, len, angle);
+            motion(src.view(), &mut dst.view_mut(), len, angle);
             let taps = motion_taps(len, angle);
             for y in 0..6i64 {
                 for x in 0..11i64 {
@@ -253,7 +254,7 @@ mod tests {
     fn pixelate_averages_tiles() {
         let src = Frame::new(3, 1, vec![0, 0, 0, 10, 10, 10, 255, 255, 255]).unwrap();
         let mut dst = src.clone();
-        pixelate(&src, &mut dst, 2);
+        pixelate(src.view(), &mut dst.view_mut(), 2);
         assert_eq!(dst.data(), &[5, 5, 5, 5, 5, 5, 255, 255, 255]);
     }
 }

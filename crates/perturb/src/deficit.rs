@@ -9,7 +9,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::PerturbError;
-use crate::frame::{Frame, ObjectBox, PixelRect};
+use crate::frame::{FrameMut, ObjectBox, PixelRect};
 
 /// Which objects a deficit hides.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -100,7 +100,7 @@ pub fn validate_boxes(boxes: &[ObjectBox], width: u32, height: u32) -> Result<()
 
 /// Fills the selected boxes, then outlines them; returns the hidden regions in box order.
 pub(crate) fn apply(
-    frame: &mut Frame,
+    frame: &mut FrameMut<'_>,
     boxes: &[ObjectBox],
     p: &DeficitParams,
 ) -> Vec<DeficitRegion> {
@@ -168,7 +168,7 @@ pub(crate) fn apply(
     regions
 }
 
-fn fill(frame: &mut Frame, r: PixelRect, rgb: [u8; 3]) {
+fn fill(frame: &mut FrameMut<'_>, r: PixelRect, rgb: [u8; 3]) {
     let stride = frame.stride();
     let data = frame.data_mut();
     for y in r.y0..r.y1 {
@@ -182,6 +182,7 @@ fn fill(frame: &mut Frame, r: PixelRect, rgb: [u8; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Frame;
 
     #[test]
     fn masks_then_outlines_the_selected_box_only() {
@@ -212,7 +213,7 @@ mod tests {
             }),
             ..DeficitParams::default()
         };
-        let r = apply(&mut f, &boxes, &p);
+        let r = apply(&mut f.view_mut(), &boxes, &p);
         assert_eq!(r.len(), 1);
         assert_eq!(
             r[0].rect,

@@ -49,6 +49,20 @@ pub enum PerturbError {
         /// Bytes expected.
         expected: usize,
     },
+    /// An output buffer whose size differs from the input frame's.
+    #[error(
+        "the output is {width}×{height} pixels but the input frame is {expected_width}×{expected_height}"
+    )]
+    OutputSize {
+        /// Output width.
+        width: u32,
+        /// Output height.
+        height: u32,
+        /// Input width.
+        expected_width: u32,
+        /// Input height.
+        expected_height: u32,
+    },
     /// A depth map whose size differs from the frame's.
     #[error(
         "the depth map is {depth_width}×{depth_height} pixels but the frame is {frame_width}×{frame_height}"

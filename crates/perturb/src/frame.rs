@@ -17,18 +17,7 @@ pub struct Frame {
 impl Frame {
     /// A frame over `data`; fails when the size is zero or `data` has the wrong length.
     pub fn new(width: u32, height: u32, data: Vec<u8>) -> Result<Self, PerturbError> {
-        if width == 0 || height == 0 {
-            return Err(PerturbError::EmptyFrame { width, height });
-        }
-        let expected = width as usize * height as usize * 3;
-        if data.len() != expected {
-            return Err(PerturbError::BufferSize {
-                width,
-                height,
-                len: data.len(),
-                expected,
-            });
-        }
+        check_layout(width, height, data.len())?;
         Ok(Self {
             width,
             height,
@@ -77,9 +66,22 @@ impl Frame {
         [self.data[i], self.data[i + 1], self.data[i + 2]]
     }
 
-    /// Bytes per row.
-    pub(crate) fn stride(&self) -> usize {
-        self.width as usize * 3
+    /// The frame as a borrowed view.
+    pub fn view(&self) -> FrameRef<'_> {
+        FrameRef {
+            width: self.width,
+            height: self.height,
+            data: &self.data,
+        }
+    }
+
+    /// The frame as a writable borrowed view.
+    pub fn view_mut(&mut self) -> FrameMut<'_> {
+        FrameMut {
+            width: self.width,
+            height: self.height,
+            data: &mut self.data,
+        }
     }
 
     /// Makes `self` a `width × height` frame, reusing its allocation; contents unspecified.
@@ -97,6 +99,146 @@ impl Frame {
             data: Vec::new(),
         }
     }
+}
+
+/// A frame over borrowed bytes (a numpy array, a decoded buffer): the layout of [`Frame`]
+/// without owning it, so callers perturb their own buffers without a copy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameRef<'a> {
+    width: u32,
+    height: u32,
+    data: &'a [u8],
+}
+
+impl<'a> FrameRef<'a> {
+    /// A view of `data` as a `width × height` RGB8 frame; fails as [`Frame::new`] does.
+    pub fn new(width: u32, height: u32, data: &'a [u8]) -> Result<Self, PerturbError> {
+        check_layout(width, height, data.len())?;
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The interleaved RGB bytes.
+    pub fn data(&self) -> &'a [u8] {
+        self.data
+    }
+
+    /// The pixel at column `x`, row `y` (panics outside the frame).
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
+        let i = (y as usize * self.width as usize + x as usize) * 3;
+        [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+
+    /// An owned copy.
+    pub fn to_frame(&self) -> Frame {
+        Frame {
+            width: self.width,
+            height: self.height,
+            data: self.data.to_vec(),
+        }
+    }
+
+    /// Bytes per row.
+    pub(crate) fn stride(&self) -> usize {
+        self.width as usize * 3
+    }
+}
+
+impl<'a> From<&'a Frame> for FrameRef<'a> {
+    fn from(f: &'a Frame) -> Self {
+        f.view()
+    }
+}
+
+/// A frame over borrowed, writable bytes: where [`Prepared::apply_to`](crate::Prepared::apply_to)
+/// writes its output (a caller's `out=` array, one image of a batch).
+#[derive(Debug, PartialEq, Eq)]
+pub struct FrameMut<'a> {
+    width: u32,
+    height: u32,
+    data: &'a mut [u8],
+}
+
+impl<'a> FrameMut<'a> {
+    /// A writable view of `data` as a `width × height` RGB8 frame; fails as [`Frame::new`]
+    /// does.
+    pub fn new(width: u32, height: u32, data: &'a mut [u8]) -> Result<Self, PerturbError> {
+        check_layout(width, height, data.len())?;
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The interleaved RGB bytes.
+    pub fn data(&self) -> &[u8] {
+        self.data
+    }
+
+    /// The interleaved RGB bytes, mutable (the size cannot change).
+    pub fn data_mut(&mut self) -> &mut [u8] {
+        self.data
+    }
+
+    /// The frame as it stands, read-only.
+    pub fn as_ref(&self) -> FrameRef<'_> {
+        FrameRef {
+            width: self.width,
+            height: self.height,
+            data: self.data,
+        }
+    }
+
+    /// The pixel at column `x`, row `y` (panics outside the frame).
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
+        self.as_ref().pixel(x, y)
+    }
+
+    /// Bytes per row.
+    pub(crate) fn stride(&self) -> usize {
+        self.width as usize * 3
+    }
+}
+
+/// Checks that `len` bytes hold a `width × height` RGB8 frame.
+fn check_layout(width: u32, height: u32, len: usize) -> Result<(), PerturbError> {
+    if width == 0 || height == 0 {
+        return Err(PerturbError::EmptyFrame { width, height });
+    }
+    let expected = width as usize * height as usize * 3;
+    if len != expected {
+        return Err(PerturbError::BufferSize {
+            width,
+            height,
+            len,
+            expected,
+        });
+    }
+    Ok(())
 }
 
 /// Distance from the camera per pixel, in metres, row-major like [`Frame`].
@@ -156,7 +298,8 @@ impl DepthMap {
     }
 
     /// Fails unless the map has the frame's size.
-    pub fn check_size(&self, frame: &Frame) -> Result<(), PerturbError> {
+    pub fn check_size<'f>(&self, frame: impl Into<FrameRef<'f>>) -> Result<(), PerturbError> {
+        let frame = frame.into();
         if (self.width, self.height) == (frame.width, frame.height) {
             Ok(())
         } else {

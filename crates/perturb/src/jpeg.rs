@@ -19,7 +19,7 @@
 //! same. Quality 100 is not the identity (chroma subsampling and 8-bit colour conversion still
 //! lose information).
 
-use crate::frame::Frame;
+use crate::frame::{FrameMut, FrameRef};
 
 const LUMA_Q: [u16; 64] = [
     16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
@@ -63,7 +63,7 @@ fn round(v: f32) -> f32 {
 }
 
 /// The JPEG round trip of `src` at `quality` into `dst`.
-pub(crate) fn jpeg(src: &Frame, dst: &mut Frame, quality: u32, subsample: bool) {
+pub(crate) fn jpeg(src: FrameRef<'_>, dst: &mut FrameMut<'_>, quality: u32, subsample: bool) {
     let (w, h) = (src.width() as usize, src.height() as usize);
     let mut y = Plane {
         w,
@@ -219,6 +219,7 @@ fn round_trip(p: &mut Plane, q: &[f32; 64], c: &[[f32; 8]; 8]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Frame;
 
     #[test]
     fn tables_scale_like_libjpeg() {
@@ -232,13 +233,13 @@ mod tests {
     fn flat_grey_survives_and_detail_degrades_with_quality() {
         let flat = Frame::filled(16, 16, [128, 128, 128]).unwrap();
         let mut out = flat.clone();
-        jpeg(&flat, &mut out, 10, true);
+        jpeg(flat.view(), &mut out.view_mut(), 10, true);
         assert_eq!(out, flat);
         let data: Vec<u8> = (0..32 * 32 * 3).map(|i| ((i * 97) % 256) as u8).collect();
         let src = Frame::new(32, 32, data).unwrap();
         let err = |q| {
             let mut o = src.clone();
-            jpeg(&src, &mut o, q, true);
+            jpeg(src.view(), &mut o.view_mut(), q, true);
             o.data()
                 .iter()
                 .zip(src.data())

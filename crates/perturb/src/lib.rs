@@ -90,6 +90,6 @@ pub mod temporal;
 
 pub use deficit::{DeficitParams, DeficitRegion, DeficitTarget, Outline};
 pub use error::PerturbError;
-pub use frame::{DepthMap, Frame, FrameKey, ObjectBox, PixelRect};
+pub use frame::{DepthMap, Frame, FrameKey, FrameMut, FrameRef, ObjectBox, PixelRect};
 pub use perturbation::{Applied, FrameInput, Perturbation, Prepared, Step};
 pub use temporal::FrameSource;

@@ -48,7 +48,7 @@
 //! the integration tests check samples against this law with moments and a χ² test. The
 //! tables are built once per condition (`Perturbation::prepare`).
 
-use crate::frame::Frame;
+use crate::frame::{FrameMut, FrameRef};
 use crate::rng::{WyRand, Xoshiro8, child, probability_threshold};
 use fogline_stats::special::norm_sf;
 
@@ -174,7 +174,7 @@ impl GaussianTable {
     }
 
     /// Adds the noise to `src` into `dst` (same size), one stream per row under `stream`.
-    pub(crate) fn apply(&self, src: &Frame, dst: &mut Frame, stream: u64) {
+    pub(crate) fn apply(&self, src: FrameRef<'_>, dst: &mut FrameMut<'_>, stream: u64) {
         let stride = src.stride();
         #[cfg(target_arch = "x86_64")]
         let simd = x86::Simd::detect();
@@ -357,7 +357,7 @@ impl ShotTable {
         Self { thresholds, start }
     }
 
-    pub(crate) fn apply(&self, src: &Frame, dst: &mut Frame, stream: u64) {
+    pub(crate) fn apply(&self, src: FrameRef<'_>, dst: &mut FrameMut<'_>, stream: u64) {
         let stride = src.stride();
         for (row, (s, d)) in src
             .data()
@@ -383,7 +383,7 @@ impl ShotTable {
 /// `p/2`, 255 with probability `p/2`, and keeps its value otherwise (exact to 2^-32; one
 /// 32-bit draw per sample). As skimage's `s&p` mode behind imagecorruptions'
 /// `impulse_noise` (amounts .03/.06/.09/.17/.27 for severity 1–5).
-pub(crate) fn impulse(src: &Frame, dst: &mut Frame, p: f64, stream: u64) {
+pub(crate) fn impulse(src: FrameRef<'_>, dst: &mut FrameMut<'_>, p: f64, stream: u64) {
     // An even threshold so that salt and pepper are exactly equally likely.
     let t = 2 * ((p.clamp(0.0, 1.0) * 2_147_483_648.0).round() as u64).min(1 << 31);
     let stride = src.stride();

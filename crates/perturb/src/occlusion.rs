@@ -6,12 +6,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::frame::Frame;
+use crate::frame::FrameMut;
 use crate::rng::{WyRand, probability_threshold};
 
 /// Dead pixels: each pixel independently (probability `p`, exact to 2^-64, one draw per
 /// pixel from the camera stream's row `y` sub-stream) shows `rgb` in every frame.
-pub(crate) fn dead_pixels(frame: &mut Frame, p: f64, rgb: [u8; 3], camera_stream: u64) {
+pub(crate) fn dead_pixels(frame: &mut FrameMut<'_>, p: f64, rgb: [u8; 3], camera_stream: u64) {
     let t = probability_threshold(p);
     let stride = frame.stride();
     for (y, row) in frame.data_mut().chunks_exact_mut(stride).enumerate() {
@@ -76,7 +76,7 @@ pub(crate) fn blobs(p: &DirtParams, width: u32, height: u32, camera_stream: u64)
 }
 
 /// Paints every pixel whose centre `(x + ½, y + ½)` lies within a blob.
-pub(crate) fn lens_dirt(frame: &mut Frame, p: &DirtParams, camera_stream: u64) {
+pub(crate) fn lens_dirt(frame: &mut FrameMut<'_>, p: &DirtParams, camera_stream: u64) {
     let (w, h) = (frame.width(), frame.height());
     let stride = frame.stride();
     let data = frame.data_mut();

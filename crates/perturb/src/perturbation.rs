@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::PerturbError;
 use crate::bytemap::ByteMap;
 use crate::deficit::{self, DeficitParams, DeficitRegion, DeficitTarget};
-use crate::frame::{DepthMap, Frame, FrameKey, ObjectBox};
+use crate::frame::{DepthMap, Frame, FrameKey, FrameMut, FrameRef, ObjectBox};
 use crate::noise::{self, GaussianTable, ShotTable};
 use crate::occlusion::{self, DirtParams};
 use crate::params::*;
@@ -584,8 +584,8 @@ impl Perturbation {
 /// A frame to perturb and what comes with it.
 #[derive(Debug, Clone, Copy)]
 pub struct FrameInput<'a> {
-    /// The pixels.
-    pub frame: &'a Frame,
+    /// The pixels (`&frame` converts: `FrameInput::new(&frame, key)`).
+    pub frame: FrameRef<'a>,
     /// Which clip, camera and frame (keys the random streams).
     pub key: FrameKey,
     /// Distances per pixel, for Koschmieder fog.
@@ -596,9 +596,9 @@ pub struct FrameInput<'a> {
 
 impl<'a> FrameInput<'a> {
     /// A frame with no depth map and no boxes.
-    pub fn new(frame: &'a Frame, key: FrameKey) -> Self {
+    pub fn new(frame: impl Into<FrameRef<'a>>, key: FrameKey) -> Self {
         Self {
-            frame,
+            frame: frame.into(),
             key,
             depth: None,
             boxes: &[],
@@ -656,8 +656,8 @@ struct StepCtx<'a> {
 impl Kernel {
     fn run(
         &self,
-        src: &Frame,
-        dst: &mut Frame,
+        src: FrameRef<'_>,
+        dst: &mut FrameMut<'_>,
         ctx: &StepCtx<'_>,
         deficits: &mut Vec<DeficitRegion>,
     ) -> Result<(), PerturbError> {
@@ -749,18 +749,37 @@ impl Prepared {
         input: &FrameInput<'_>,
         out: &mut Frame,
     ) -> Result<Vec<DeficitRegion>, PerturbError> {
+        out.reshape(input.frame.width(), input.frame.height());
+        self.apply_to(input, &mut out.view_mut())
+    }
+
+    /// [`apply`](Self::apply) into a caller's buffer of the input's size (a numpy array, one
+    /// image of a batch): the same bytes, no allocation for a one-step condition and one
+    /// scratch frame for a chain.
+    pub fn apply_to(
+        &self,
+        input: &FrameInput<'_>,
+        out: &mut FrameMut<'_>,
+    ) -> Result<Vec<DeficitRegion>, PerturbError> {
         let src = input.frame;
         let (w, h) = (src.width(), src.height());
+        if (out.width(), out.height()) != (w, h) {
+            return Err(PerturbError::OutputSize {
+                width: out.width(),
+                height: out.height(),
+                expected_width: w,
+                expected_height: h,
+            });
+        }
         if let Some(d) = input.depth {
             d.check_size(src)?;
         }
         deficit::validate_boxes(input.boxes, w, h)?;
-        out.reshape(w, h);
         let mut deficits = Vec::new();
-        let Some(((first_step, first), rest)) = self.spatial.split_first() else {
+        if self.spatial.is_empty() {
             out.data_mut().copy_from_slice(src.data());
             return Ok(deficits);
-        };
+        }
         let k = input.key;
         let ctx = |step: u64| StepCtx {
             frame_stream: child(
@@ -772,12 +791,22 @@ impl Prepared {
             boxes: input.boxes,
             name: &self.perturbation.name,
         };
-        first.run(src, out, &ctx(*first_step), &mut deficits)?;
+        // A chain ping-pongs between `out` and one scratch frame, starting where it makes
+        // the last step write into `out`.
+        let n = self.spatial.len();
         let mut spare = Frame::scratch();
-        for (step, kernel) in rest {
-            std::mem::swap(out, &mut spare);
-            out.reshape(w, h);
-            kernel.run(&spare, out, &ctx(*step), &mut deficits)?;
+        if n > 1 {
+            spare.reshape(w, h);
+        }
+        for (i, (step, kernel)) in self.spatial.iter().enumerate() {
+            let into_out = (n - 1 - i).is_multiple_of(2);
+            let c = ctx(*step);
+            match (i, into_out) {
+                (0, true) => kernel.run(src, out, &c, &mut deficits)?,
+                (0, false) => kernel.run(src, &mut spare.view_mut(), &c, &mut deficits)?,
+                (_, true) => kernel.run(spare.view(), out, &c, &mut deficits)?,
+                (_, false) => kernel.run(out.as_ref(), &mut spare.view_mut(), &c, &mut deficits)?,
+            }
         }
         Ok(deficits)
     }
@@ -786,6 +815,70 @@ impl Prepared {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn apply_to_a_borrowed_buffer_gives_the_same_bytes_for_chains_of_any_length() {
+        let mut data = Vec::new();
+        for i in 0..(40 * 24 * 3) {
+            data.push((i * 37 % 251) as u8);
+        }
+        let frame = Frame::new(40, 24, data).unwrap();
+        let key = FrameKey::new(3, 1, 9);
+        for name in [
+            "clean",
+            "noise_30",
+            "noise_30+fog_03",
+            "noise_30+fog_03+dark",
+            "dark+noise_10+defocus_2+jpeg_20",
+        ] {
+            let p = Perturbation::parse(name).unwrap().prepare(5).unwrap();
+            let owned = p.apply(&FrameInput::new(&frame, key)).unwrap().frame;
+            let mut buf = vec![7u8; frame.data().len()];
+            let mut out = FrameMut::new(40, 24, &mut buf).unwrap();
+            p.apply_to(&FrameInput::new(frame.view(), key), &mut out)
+                .unwrap();
+            assert_eq!(buf, owned.data(), "{name}");
+        }
+        // A deterministic chain of any length (odd and even: the ping-pong starts in
+        // either buffer) equals its steps applied one after the other.
+        let steps = ["fog_03", "dark", "defocus_2", "jpeg_20"];
+        let mut one_by_one = frame.clone();
+        for n in 1..=steps.len() {
+            let step = Perturbation::parse(steps[n - 1])
+                .unwrap()
+                .prepare(5)
+                .unwrap();
+            one_by_one = step
+                .apply(&FrameInput::new(&one_by_one, key))
+                .unwrap()
+                .frame;
+            let chain = Perturbation::parse(&steps[..n].join("+"))
+                .unwrap()
+                .prepare(5)
+                .unwrap();
+            let mut buf = vec![0u8; frame.data().len()];
+            chain
+                .apply_to(
+                    &FrameInput::new(&frame, key),
+                    &mut FrameMut::new(40, 24, &mut buf).unwrap(),
+                )
+                .unwrap();
+            assert_eq!(buf, one_by_one.data(), "{n} steps");
+        }
+        let p = Perturbation::parse("noise_30").unwrap().prepare(5).unwrap();
+        let mut small = vec![0u8; 40 * 23 * 3];
+        let err = p
+            .apply_to(
+                &FrameInput::new(&frame, key),
+                &mut FrameMut::new(40, 23, &mut small).unwrap(),
+            )
+            .unwrap_err();
+        assert!(
+            matches!(err, PerturbError::OutputSize { height: 23, .. }),
+            "{err}"
+        );
+        assert!(FrameRef::new(40, 24, &small).is_err());
+    }
 
     #[test]
     fn names_round_trip() {

@@ -6,7 +6,7 @@
 //! sample, `A` the airlight, all on the 0–255 scale.
 
 use crate::bytemap::{ByteMap, floor_guarded, floor_guarded_u8};
-use crate::frame::{DepthMap, Frame};
+use crate::frame::{DepthMap, FrameMut, FrameRef};
 
 /// Gain: `out = min(255, ⌊g·J + ½⌋)`. `dark` is `g = 0.4`, `bright` is `g = 1.6`.
 pub fn gain_map(g: f64) -> ByteMap {
@@ -36,7 +36,7 @@ pub fn quantize_map(bits: u32) -> ByteMap {
 }
 
 /// The mean of all samples of a frame (the grey that contrast scales around).
-pub fn mean_level(frame: &Frame) -> f64 {
+pub fn mean_level(frame: FrameRef<'_>) -> f64 {
     let sum: u64 = frame
         .data()
         .chunks(1 << 16)
@@ -47,7 +47,7 @@ pub fn mean_level(frame: &Frame) -> f64 {
 
 /// Saturation: with the luma `L = 0.299·R + 0.587·G + 0.114·B` (ITU-R BT.601) of each pixel,
 /// `out_c = clip(⌊L + s·(J_c − L) + ½⌋)`; `s = 0` is greyscale, `s = 1` the identity.
-pub(crate) fn saturation(src: &Frame, dst: &mut Frame, s: f64) {
+pub(crate) fn saturation(src: FrameRef<'_>, dst: &mut FrameMut<'_>, s: f64) {
     for (o, x) in dst
         .data_mut()
         .chunks_exact_mut(3)
@@ -64,7 +64,13 @@ pub(crate) fn saturation(src: &Frame, dst: &mut Frame, s: f64) {
 /// `(cx·W, cy·H)` and radius `ρ = radius·D`, the weight of pixel `(x, y)` (centre at
 /// `x + ½, y + ½`) is `w = s · gx(x) · gy(y)`, `gx(x) = exp(−(x + ½ − cx·W)² / (2ρ²))`
 /// (likewise `gy`), and `out = ⌊J + (255 − J)·w + ½⌋` (a screen blend towards white).
-pub(crate) fn glare(src: &Frame, dst: &mut Frame, s: f64, centre: [f64; 2], radius: f64) {
+pub(crate) fn glare(
+    src: FrameRef<'_>,
+    dst: &mut FrameMut<'_>,
+    s: f64,
+    centre: [f64; 2],
+    radius: f64,
+) {
     let (w, h) = (f64::from(src.width()), f64::from(src.height()));
     let rho = radius * (w * w + h * h).sqrt();
     let g = |p: f64, c: f64| (-(p + 0.5 - c).powi(2) / (2.0 * rho * rho)).exp();
@@ -98,7 +104,13 @@ pub(crate) fn glare(src: &Frame, dst: &mut Frame, s: f64, centre: [f64; 2], radi
 /// where that formula lies within ~1e-4 of a rounding boundary, where it may differ by one
 /// level (the tests check this). `d = +inf` (sky) gives pure airlight, and so does every
 /// `d > 0` when `α = 1`; `d = 0` keeps the pixel.
-pub(crate) fn koschmieder(src: &Frame, dst: &mut Frame, depth: &DepthMap, beta: f64, a: f64) {
+pub(crate) fn koschmieder(
+    src: FrameRef<'_>,
+    dst: &mut FrameMut<'_>,
+    depth: &DepthMap,
+    beta: f64,
+    a: f64,
+) {
     // k = −β·log₂e; a finite β keeps k·0 = 0 (t = 1 at zero distance) even for opaque fog.
     let k = (-beta * std::f64::consts::LOG2_E).max(f64::from(f32::MIN)) as f32;
     let a = a as f32;

@@ -352,7 +352,7 @@ impl Lens {
             return (frame, Vec::new());
         };
         let input = FrameInput {
-            frame: &frame,
+            frame: frame.view(),
             key,
             depth,
             boxes,

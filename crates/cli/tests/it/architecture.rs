@@ -44,7 +44,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
             &["fogline-types", "fogline-envelope", "fogline-sim"][..],
         ),
         ("fogline-cli", &["*"][..]),
-        ("fogline-py", &["*"][..]),
+        ("fogline-python", &["*"][..]),
         ("fogline-bench", &["*"][..]),
     ])
 }

@@ -1,0 +1,41 @@
+"""Type stubs of fogline's compiled module."""
+
+from typing import Any, Literal, Optional, Sequence, Tuple, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+Key = Union[str, int]
+Box = Union[dict, Tuple[str, float, float, float, float]]
+Region = dict
+
+@overload
+def perturb(
+    image: npt.NDArray[np.uint8],
+    condition: str,
+    *,
+    seed: int = ...,
+    key: Optional[Union[Key, Sequence[Key]]] = ...,
+    out: Optional[npt.NDArray[np.uint8]] = ...,
+    boxes: Optional[Union[Sequence[Box], Sequence[Sequence[Box]]]] = ...,
+    depth: Optional[npt.NDArray[np.float32]] = ...,
+    threads: int = ...,
+    return_regions: Literal[False] = ...,
+) -> npt.NDArray[np.uint8]: ...
+@overload
+def perturb(
+    image: npt.NDArray[np.uint8],
+    condition: str,
+    *,
+    seed: int = ...,
+    key: Optional[Union[Key, Sequence[Key]]] = ...,
+    out: Optional[npt.NDArray[np.uint8]] = ...,
+    boxes: Optional[Union[Sequence[Box], Sequence[Sequence[Box]]]] = ...,
+    depth: Optional[npt.NDArray[np.float32]] = ...,
+    threads: int = ...,
+    return_regions: Literal[True],
+) -> Tuple[npt.NDArray[np.uint8], Any]: ...
+def stream_key(rel: str) -> Tuple[int, int, int]: ...
+def condition_name(condition: str) -> str: ...

@@ -1,0 +1,462 @@
+//! The Python package `fogline` (built by maturin, `pip install ./crates/python`): thin PyO3
+//! bindings over fogline's library crates.
+//!
+//! This crate only converts Python arguments, releases the GIL and calls the library; the
+//! work itself lives in the library crates (`fogline_perturb` for the corruptions). Every
+//! error becomes a Python exception that names the argument at fault (`TypeError` for a
+//! wrong type or dtype, `ValueError` for a wrong shape, layout or value); no panic crosses
+//! the boundary (PyO3 turns one into `PanicException`, and none is expected).
+//!
+//! The Python-side API (docstrings, type stubs, the transform classes) is in
+//! `python/fogline/`; the user guide is `docs/python.md`.
+
+use fogline_perturb::deficit::DeficitRegion;
+use fogline_perturb::rng::name_id;
+use fogline_perturb::{
+    DepthMap, FrameInput, FrameKey, FrameMut, FrameRef, FrameSource, ObjectBox, Perturbation,
+    Prepared,
+};
+use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString};
+use rayon::prelude::*;
+
+/// A `ValueError` naming what is at fault.
+fn value_error(what: &str, msg: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(format!("{what}: {msg}"))
+}
+
+/// The stream key of a frame named like the CLI names it: `rel` is the frame's path relative
+/// to the input directory (`clip/0001.png`), its directory names the clip.
+fn key_of_path(rel: &str) -> FrameKey {
+    let dir = rel.rsplit_once('/').map_or("", |(d, _)| d);
+    FrameKey::new(name_id(dir), 0, name_id(rel))
+}
+
+/// One frame's key from a Python `str` (a relative path, as the CLI keys it) or `int` (the
+/// frame number in clip 0, camera 0).
+fn key_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<FrameKey> {
+    if let Ok(s) = obj.cast::<PyString>() {
+        return Ok(key_of_path(&s.to_cow()?));
+    }
+    if let Ok(i) = obj.extract::<u64>() {
+        return Ok(FrameKey::new(0, 0, i));
+    }
+    Err(PyTypeError::new_err(format!(
+        "{what}: expected a str (the frame's relative path, as the CLI keys it) or a \
+         non-negative int, got {}",
+        type_name(obj)
+    )))
+}
+
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map_or_else(|_| "an object".to_string(), |n| n.to_string())
+}
+
+/// `obj` as a numpy array of element type `T`, with a clear error for anything else.
+fn array_of<'py, T: numpy::Element>(
+    obj: &Bound<'py, PyAny>,
+    what: &str,
+    want: &str,
+) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+    if let Ok(a) = obj.cast::<PyArrayDyn<T>>() {
+        return Ok(a.clone());
+    }
+    match obj.cast::<PyUntypedArray>() {
+        Ok(a) => Err(PyTypeError::new_err(format!(
+            "{what}: expected a {want} array, got dtype {} (convert with .astype(np.{want}))",
+            a.dtype()
+        ))),
+        Err(_) => Err(PyTypeError::new_err(format!(
+            "{what}: expected a numpy {want} array, got {}",
+            type_name(obj)
+        ))),
+    }
+}
+
+/// Frames' geometry from an image array's shape: `(n, height, width, batched)`.
+fn frame_shape(shape: &[usize]) -> PyResult<(usize, u32, u32, bool)> {
+    let (n, h, w, c, batched) = match *shape {
+        [h, w, c] => (1, h, w, c, false),
+        [n, h, w, c] => (n, h, w, c, true),
+        _ => {
+            return Err(value_error(
+                "image",
+                format!(
+                    "expected shape (H, W, 3) or (N, H, W, 3), got {shape:?} ({} dimensions)",
+                    shape.len()
+                ),
+            ));
+        }
+    };
+    if c != 3 {
+        return Err(value_error(
+            "image",
+            format!("expected 3 channels (RGB) in the last axis, got shape {shape:?}"),
+        ));
+    }
+    let dim = |v: usize, name: &str| {
+        u32::try_from(v)
+            .ok()
+            .filter(|&v| v > 0)
+            .ok_or_else(|| value_error("image", format!("{name} must be 1 to 2^32-1, got {v}")))
+    };
+    Ok((n, dim(h, "height")?, dim(w, "width")?, batched))
+}
+
+/// One box from a dict with the CLI's box fields (`class`, `x`, `y`, `width`, `height`,
+/// optional `track_id`) or a tuple `(class, x, y, width, height)`.
+fn box_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<ObjectBox> {
+    if let Ok(d) = obj.cast::<PyDict>() {
+        let get = |field: &str| -> PyResult<Bound<'_, PyAny>> {
+            d.get_item(field)?
+                .ok_or_else(|| value_error(what, format!("missing field {field:?}")))
+        };
+        let num = |field: &str| -> PyResult<f64> {
+            get(field)?
+                .extract::<f64>()
+                .map_err(|_| PyTypeError::new_err(format!("{what}.{field}: expected a number")))
+        };
+        let track_id = match d.get_item("track_id")? {
+            Some(t) if !t.is_none() => Some(t.extract::<u64>().map_err(|_| {
+                PyTypeError::new_err(format!("{what}.track_id: expected a non-negative int"))
+            })?),
+            _ => None,
+        };
+        return Ok(ObjectBox {
+            class: get("class")?
+                .extract::<String>()
+                .map_err(|_| PyTypeError::new_err(format!("{what}.class: expected a str")))?,
+            track_id,
+            x_px: num("x")?,
+            y_px: num("y")?,
+            width_px: num("width")?,
+            height_px: num("height")?,
+        });
+    }
+    if let Ok((class, x, y, w, h)) = obj.extract::<(String, f64, f64, f64, f64)>() {
+        return Ok(ObjectBox {
+            class,
+            track_id: None,
+            x_px: x,
+            y_px: y,
+            width_px: w,
+            height_px: h,
+        });
+    }
+    Err(PyTypeError::new_err(format!(
+        "{what}: expected a dict with class, x, y, width, height (and optionally track_id) \
+         or a tuple (class, x, y, width, height), got {}",
+        type_name(obj)
+    )))
+}
+
+fn boxes_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<ObjectBox>> {
+    let mut out = Vec::new();
+    for (i, b) in obj.try_iter()?.enumerate() {
+        out.push(box_of(&b?, &format!("{what}[{i}]"))?);
+    }
+    Ok(out)
+}
+
+/// The items of a sequence argument that gives one value per frame of a batch.
+fn per_frame<'py>(
+    obj: &Bound<'py, PyAny>,
+    n: usize,
+    what: &str,
+) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    if obj.is_instance_of::<PyString>() {
+        return Err(PyTypeError::new_err(format!(
+            "{what}: a batch of {n} frames takes a list of {n} values, one per frame"
+        )));
+    }
+    let items: Vec<Bound<'py, PyAny>> = obj
+        .try_iter()
+        .map_err(|_| {
+            PyTypeError::new_err(format!(
+                "{what}: a batch of {n} frames takes a list of {n} values, one per frame"
+            ))
+        })?
+        .collect::<PyResult<_>>()?;
+    if items.len() != n {
+        return Err(value_error(
+            what,
+            format!("{} values for a batch of {n} frames", items.len()),
+        ));
+    }
+    Ok(items)
+}
+
+fn region_dict<'py>(py: Python<'py>, r: &DeficitRegion) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("class", &r.class)?;
+    d.set_item("track_id", r.track_id)?;
+    d.set_item("x", r.rect.x0)?;
+    d.set_item("y", r.rect.y0)?;
+    d.set_item("width", r.rect.x1 - r.rect.x0)?;
+    d.set_item("height", r.rect.y1 - r.rect.y0)?;
+    Ok(d)
+}
+
+/// One frame's work, ready to run without the GIL.
+struct Job {
+    key: FrameKey,
+    source: FrameSource,
+    boxes: Vec<ObjectBox>,
+    depth: Option<DepthMap>,
+}
+
+/// Applies a prepared condition to `n` frames of `w × h` in `src`, writing `dst`.
+fn run_jobs(
+    prepared: &Prepared,
+    jobs: &[Job],
+    src: &[u8],
+    dst: &mut [u8],
+    (w, h): (u32, u32),
+    threads: usize,
+) -> Result<Vec<Vec<DeficitRegion>>, (usize, fogline_perturb::PerturbError)> {
+    let len = w as usize * h as usize * 3;
+    let one = |(i, (job, out)): (usize, (&Job, &mut [u8]))| {
+        let mut out = FrameMut::new(w, h, out).map_err(|e| (i, e))?;
+        match job.source {
+            FrameSource::Black => {
+                out.data_mut().fill(0);
+                Ok(Vec::new())
+            }
+            FrameSource::Captured(j) => {
+                let frame =
+                    FrameRef::new(w, h, &src[j * len..(j + 1) * len]).map_err(|e| (i, e))?;
+                let input = FrameInput {
+                    frame,
+                    key: job.key,
+                    depth: job.depth.as_ref(),
+                    boxes: &job.boxes,
+                };
+                prepared.apply_to(&input, &mut out).map_err(|e| (i, e))
+            }
+        }
+    };
+    let work = jobs.iter().zip(dst.chunks_exact_mut(len)).enumerate();
+    if threads == 1 || jobs.len() == 1 {
+        work.map(one).collect()
+    } else {
+        let mut all = |_: ()| -> Result<Vec<_>, _> {
+            jobs.par_iter()
+                .zip(dst.par_chunks_exact_mut(len))
+                .enumerate()
+                .map(one)
+                .collect()
+        };
+        match threads {
+            0 => all(()),
+            t => match rayon::ThreadPoolBuilder::new().num_threads(t).build() {
+                Ok(pool) => pool.install(|| all(())),
+                Err(_) => all(()),
+            },
+        }
+    }
+}
+
+/// Applies a condition to one frame or a batch; see `fogline.perturb` in
+/// `python/fogline/__init__.py` for the user-facing documentation.
+#[pyfunction]
+#[pyo3(signature = (image, condition, *, seed=0, key=None, out=None, boxes=None, depth=None, threads=1, return_regions=false))]
+#[allow(clippy::too_many_arguments)]
+fn perturb<'py>(
+    py: Python<'py>,
+    image: &Bound<'py, PyAny>,
+    condition: &str,
+    seed: u64,
+    key: Option<&Bound<'py, PyAny>>,
+    out: Option<&Bound<'py, PyAny>>,
+    boxes: Option<&Bound<'py, PyAny>>,
+    depth: Option<&Bound<'py, PyAny>>,
+    threads: usize,
+    return_regions: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let image = array_of::<u8>(image, "image", "uint8")?;
+    let shape = image.shape().to_vec();
+    let (n, h, w, batched) = frame_shape(&shape)?;
+    let perturbation = Perturbation::parse(condition)
+        .map_err(|e| value_error(&format!("condition {condition:?}"), e))?;
+    let prepared = perturbation
+        .prepare(seed)
+        .map_err(|e| value_error(&format!("condition {condition:?}"), e))?;
+    if perturbation.needs_depth() && depth.is_none() {
+        return Err(value_error(
+            &format!("condition {condition:?}"),
+            "needs a depth map in metres: pass depth= (float32, H x W)",
+        ));
+    }
+    if perturbation.uses_boxes() && boxes.is_none() {
+        return Err(value_error(
+            &format!("condition {condition:?}"),
+            "masks objects: pass boxes= (dicts with class, x, y, width, height)",
+        ));
+    }
+
+    // Keys: one per frame.
+    let keys: Vec<FrameKey> = match (key, batched) {
+        (None, false) => vec![FrameKey::default()],
+        (None, true) => (0..n as u64).map(|i| FrameKey::new(0, 0, i)).collect(),
+        (Some(k), false) => vec![key_of(k, "key")?],
+        (Some(k), true) => per_frame(k, n, "key")?
+            .iter()
+            .enumerate()
+            .map(|(i, k)| key_of(k, &format!("key[{i}]")))
+            .collect::<PyResult<_>>()?,
+    };
+    // Boxes: one list per frame.
+    let boxes: Vec<Vec<ObjectBox>> = match (boxes, batched) {
+        (None, _) => vec![Vec::new(); n],
+        (Some(b), false) => vec![boxes_of(b, "boxes")?],
+        (Some(b), true) => per_frame(b, n, "boxes")?
+            .iter()
+            .enumerate()
+            .map(|(i, b)| boxes_of(b, &format!("boxes[{i}]")))
+            .collect::<PyResult<_>>()?,
+    };
+    // Depth maps: H × W, or N × H × W for a batch.
+    let depths: Vec<Option<DepthMap>> = match depth {
+        None => (0..n).map(|_| None).collect(),
+        Some(d) => {
+            let d = array_of::<f32>(d, "depth", "float32")?;
+            let want: Vec<usize> = if batched {
+                vec![n, h as usize, w as usize]
+            } else {
+                vec![h as usize, w as usize]
+            };
+            if d.shape() != want.as_slice() {
+                return Err(value_error(
+                    "depth",
+                    format!(
+                        "expected shape {want:?} (metres per pixel), got {:?}",
+                        d.shape()
+                    ),
+                ));
+            }
+            let d = d.try_readonly().map_err(|e| value_error("depth", e))?;
+            let all = d.as_slice().map_err(|_| {
+                value_error(
+                    "depth",
+                    "the array is not C-contiguous: pass np.ascontiguousarray(depth)",
+                )
+            })?;
+            let per = w as usize * h as usize;
+            all.chunks_exact(per)
+                .enumerate()
+                .map(|(i, c)| {
+                    DepthMap::new(w, h, c.to_vec())
+                        .map(Some)
+                        .map_err(|e| value_error(&format!("depth[{i}]"), e))
+                })
+                .collect::<PyResult<_>>()?
+        }
+    };
+    // Temporal faults treat a batch as one clip (the first frame's clip, camera 0).
+    let plan = prepared.plan_clip(keys[0].clip, 0, n);
+    let jobs: Vec<Job> = keys
+        .into_iter()
+        .zip(plan)
+        .zip(boxes)
+        .zip(depths)
+        .map(|(((key, source), boxes), depth)| Job {
+            key,
+            source,
+            boxes,
+            depth,
+        })
+        .collect();
+
+    let src = image.try_readonly().map_err(|e| value_error("image", e))?;
+    let src_bytes = src.as_slice().map_err(|_| {
+        value_error(
+            "image",
+            "the array is not C-contiguous: pass np.ascontiguousarray(image)",
+        )
+    })?;
+    let out = match out {
+        Some(o) => {
+            let o = array_of::<u8>(o, "out", "uint8")?;
+            if o.shape() != shape.as_slice() {
+                return Err(value_error(
+                    "out",
+                    format!("expected the image's shape {shape:?}, got {:?}", o.shape()),
+                ));
+            }
+            o
+        }
+        None => PyArrayDyn::<u8>::zeros(py, shape.as_slice(), false),
+    };
+    let regions = {
+        let mut dst = out.try_readwrite().map_err(|e| {
+            value_error(
+                "out",
+                format!("cannot write it ({e}); it must be writeable and must not share memory with image"),
+            )
+        })?;
+        let dst_bytes = dst.as_slice_mut().map_err(|_| {
+            value_error(
+                "out",
+                "the array is not C-contiguous: pass a C-contiguous array",
+            )
+        })?;
+        py.detach(|| run_jobs(&prepared, &jobs, src_bytes, dst_bytes, (w, h), threads))
+            .map_err(|(i, e)| {
+                if batched {
+                    value_error(&format!("frame {i} of the batch"), e)
+                } else {
+                    value_error("image", e)
+                }
+            })?
+    };
+    let out = out.into_any();
+    if !return_regions {
+        return Ok(out);
+    }
+    let mut lists = Vec::with_capacity(regions.len());
+    for frame in &regions {
+        let list = PyList::empty(py);
+        for r in frame {
+            list.append(region_dict(py, r)?)?;
+        }
+        lists.push(list.into_any());
+    }
+    let regions = if batched {
+        PyList::new(py, lists)?.into_any()
+    } else {
+        lists.swap_remove(0)
+    };
+    Ok((out, regions).into_pyobject(py)?.into_any())
+}
+
+/// The stream key the CLI gives a frame at relative path `rel`: `(clip, camera, frame)`.
+#[pyfunction]
+fn stream_key(rel: &str) -> (u64, u64, u64) {
+    let k = key_of_path(rel);
+    (k.clip, k.camera, k.frame)
+}
+
+/// Checks a condition (grammar and parameters) and returns its name, or a `ValueError` naming
+/// what is wrong with it.
+#[pyfunction]
+fn condition_name(condition: &str) -> PyResult<String> {
+    let p = Perturbation::parse(condition)
+        .map_err(|e| value_error(&format!("condition {condition:?}"), e))?;
+    p.validate()
+        .map_err(|e| value_error(&format!("condition {condition:?}"), e))?;
+    Ok(p.name)
+}
+
+/// The compiled half of the `fogline` package.
+#[pymodule]
+fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(perturb, m)?)?;
+    m.add_function(wrap_pyfunction!(stream_key, m)?)?;
+    m.add_function(wrap_pyfunction!(condition_name, m)?)?;
+    Ok(())
+}
