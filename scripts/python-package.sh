@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Builds the Python package `fogline` (crates/python, PyO3 + maturin, an abi3 wheel for
 # CPython >= 3.9) and installs it into the test environment target/pyenv, with what its
-# pytest suite needs (pytest, Pillow). Then, unless --no-test, runs that suite, which
-# compares the package with the CLI binary (built here when missing).
+# pytest suite needs (pytest, Pillow, pandas, pyarrow, polars). Then, unless --no-test,
+# runs that suite, which compares the package with the CLI binary (built here when missing).
 #
 #   scripts/python-package.sh             # build, install, pytest
 #   scripts/python-package.sh --no-test   # build and install only; prints the env's python
@@ -21,7 +21,8 @@ if [ ! -x "$venv/bin/python" ]; then
     "$python" -m venv "$venv" >&2
 fi
 py="$PWD/$venv/bin/python"
-need=("maturin==1.16.0" "pytest==9.2.0" "pillow==13.0.0" "numpy==2.4.6")
+need=("maturin==1.16.0" "pytest==9.2.0" "pillow==13.0.0" "numpy==2.4.6" "pandas==3.1.1"
+      "pyarrow==26.0.1" "polars==2.1.0")
 missing=()
 for pin in "${need[@]}"; do
     name=${pin%%==*}

@@ -324,14 +324,7 @@ fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
         table.clip_ids.len(),
         t0.elapsed().as_secs_f64()
     );
-    if let TaxonomyChoice::Given(tx) = &p.taxonomy
-        && tx.classes.is_empty()
-    {
-        p.taxonomy = TaxonomyChoice::Given(fogline_types::Taxonomy::from_labels(
-            table.scenarios.iter().map(String::as_str),
-            &tx.other,
-        ));
-    }
+    p.take_labels_from(&table);
     let t1 = std::time::Instant::now();
     let env = fogline_envelope::analyze(&table, &p)?;
     log::info!("analysed in {:.2} s", t1.elapsed().as_secs_f64());

@@ -50,6 +50,9 @@ pub enum Format {
     Parquet,
     /// One JSON object per line.
     Jsonl,
+    /// Arrow record batches in memory (a DataFrame or Arrow table handed over through the
+    /// Arrow C stream interface; [`read_pairs_arrow`]).
+    Arrow,
 }
 
 impl Format {
@@ -75,6 +78,7 @@ impl Format {
             Self::Csv => "CSV",
             Self::Parquet => "Parquet",
             Self::Jsonl => "JSON lines",
+            Self::Arrow => "Arrow record batches",
         }
     }
 }
@@ -185,6 +189,11 @@ pub fn read_pairs(path: &Path, opts: &ReadOptions) -> Result<PairTable> {
             Format::Csv => read_csv(file, &mut b)?,
             Format::Jsonl => read_jsonl(file, &mut b)?,
             Format::Parquet => read_parquet(file, &mut b)?,
+            Format::Arrow => {
+                return Err(EnvelopeError::UnknownFormat {
+                    path: path.to_path_buf(),
+                });
+            }
         }
         Ok(b)
     };
@@ -212,6 +221,13 @@ pub fn read_pairs_bytes(
         Format::Csv => read_csv(bytes, &mut b)?,
         Format::Jsonl => read_jsonl(bytes, &mut b)?,
         Format::Parquet => read_parquet(bytes::Bytes::copy_from_slice(bytes), &mut b)?,
+        Format::Arrow => {
+            return Err(EnvelopeError::InvalidParam {
+                name: "format",
+                reason: "Arrow data is read from record batches (read_pairs_arrow), not bytes"
+                    .into(),
+            });
+        }
     }
     b.finish(InputInfo {
         path: name.to_string(),
@@ -1019,8 +1035,6 @@ fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(
     src: T,
     b: &mut Builder<'_>,
 ) -> Result<()> {
-    use arrow_array::{Array, cast::AsArray};
-    use arrow_schema::DataType;
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
     let path = b.path.clone();
@@ -1038,14 +1052,77 @@ fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(
         )
         .map_err(|e| not_parquet(e.to_string()))?;
     let schema = builder.schema().clone();
-    let map = map_header(&b.path, schema.fields().iter().map(|f| f.name().as_str()))?;
     let reader = builder
         .with_batch_size(65_536)
         .build()
         .map_err(|e| not_parquet(e.to_string()))?;
+    push_batches(
+        b,
+        &schema,
+        reader.map(|r| r.map_err(|e| not_parquet(e.to_string()))),
+        None,
+    )
+}
+
+/// Reads a pairs table from Arrow record batches in memory: a pandas or polars DataFrame or
+/// a pyarrow Table handed over through the Arrow C stream interface, or batches a Rust
+/// caller holds. The columns and their validation are the file readers'; rows are numbered
+/// from 1 across batches, and `name` stands for the file in messages. The input's `sha256`
+/// is a digest of the cells read (text, numbers, booleans and nulls of the mapped columns),
+/// so the same data gives the same digest however it is chunked.
+pub fn read_pairs_arrow<E: std::fmt::Display>(
+    name: &str,
+    schema: &arrow_schema::Schema,
+    batches: impl IntoIterator<Item = std::result::Result<arrow_array::RecordBatch, E>>,
+    opts: &ReadOptions,
+) -> Result<PairTable> {
+    let path = Path::new(name);
+    let mut b = Builder::new(path, opts);
+    let bad = |e: E| EnvelopeError::NotFormat {
+        path: path.to_path_buf(),
+        expected: Format::Arrow.label(),
+        detail: e.to_string(),
+    };
+    let mut hasher = Sha256::new();
+    push_batches(
+        &mut b,
+        schema,
+        batches.into_iter().map(|r| r.map_err(bad)),
+        Some(&mut hasher),
+    )?;
+    b.finish(InputInfo {
+        path: name.to_string(),
+        format: Format::Arrow,
+        sha256: hex(&hasher.finalize()),
+        n_rows: 0,
+    })
+}
+
+/// Pushes the rows of record batches of `schema` into `b` (and their cells into `digest`).
+fn push_batches(
+    b: &mut Builder<'_>,
+    schema: &arrow_schema::Schema,
+    batches: impl Iterator<Item = Result<arrow_array::RecordBatch>>,
+    mut digest: Option<&mut Sha256>,
+) -> Result<()> {
+    use arrow_array::{Array, cast::AsArray};
+    use arrow_schema::DataType;
+
+    let map = map_header(&b.path, schema.fields().iter().map(|f| f.name().as_str()))?;
     let mut row0 = 0u64;
-    for batch in reader {
-        let batch = batch.map_err(|e| not_parquet(e.to_string()))?;
+    for batch in batches {
+        let batch = batch?;
+        if batch.num_columns() != schema.fields().len() {
+            return Err(EnvelopeError::NotFormat {
+                path: b.path.clone(),
+                expected: Format::Arrow.label(),
+                detail: format!(
+                    "a batch has {} columns where the schema has {}",
+                    batch.num_columns(),
+                    schema.fields().len()
+                ),
+            });
+        }
         let cols: Vec<Option<&dyn Array>> = map
             .iter()
             .map(|m| m.map(|i| batch.column(i).as_ref()))
@@ -1125,9 +1202,25 @@ fn read_parquet<T: parquet::file::reader::ChunkReader + 'static>(
         }
         for i in 0..batch.num_rows() {
             let row = row0 + i as u64 + 1;
-            b.push(row, &|c| {
-                cols[c as usize].map_or(Cell::Null, |a| cell(a, i))
-            })?;
+            let get = |c: Col| cols[c as usize].map_or(Cell::Null, |a| cell(a, i));
+            if let Some(h) = digest.as_deref_mut() {
+                for c in cols.iter().flatten() {
+                    match cell(*c, i) {
+                        Cell::Null => h.update([0u8]),
+                        Cell::Str(v) => {
+                            h.update([1u8]);
+                            h.update((v.len() as u64).to_le_bytes());
+                            h.update(v.as_bytes());
+                        }
+                        Cell::Num(v) => {
+                            h.update([2u8]);
+                            h.update(v.to_bits().to_le_bytes());
+                        }
+                        Cell::Bool(v) => h.update([3u8, u8::from(v)]),
+                    }
+                }
+            }
+            b.push(row, &get)?;
         }
         row0 += batch.num_rows() as u64;
     }

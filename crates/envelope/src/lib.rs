@@ -33,7 +33,7 @@ use std::collections::BTreeMap;
 
 pub use analyze::analyze;
 pub use error::{EnvelopeError, Result};
-pub use input::{PairTable, ReadOptions, read_pairs, read_pairs_bytes};
+pub use input::{PairTable, ReadOptions, read_pairs, read_pairs_arrow, read_pairs_bytes};
 pub use model::Envelope;
 pub use params::{Bands, BootstrapMethod, EnvelopeParams, TaxonomyChoice, ThresholdRule};
 

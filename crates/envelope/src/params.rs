@@ -124,6 +124,21 @@ pub struct EnvelopeParams {
     pub taxonomy: TaxonomyChoice,
 }
 
+impl EnvelopeParams {
+    /// A `Given` taxonomy without classes stands for "the labels found in the data" (the
+    /// CLI's `--taxonomy data`): fills them in from `t`, keeping its `other` label.
+    pub fn take_labels_from(&mut self, t: &crate::input::PairTable) {
+        if let TaxonomyChoice::Given(tx) = &self.taxonomy
+            && tx.classes.is_empty()
+        {
+            self.taxonomy = TaxonomyChoice::Given(Taxonomy::from_labels(
+                t.scenarios.iter().map(String::as_str),
+                &tx.other,
+            ));
+        }
+    }
+}
+
 impl Default for EnvelopeParams {
     fn default() -> Self {
         Self {

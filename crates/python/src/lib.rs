@@ -451,6 +451,127 @@ fn condition_name(condition: &str) -> PyResult<String> {
     Ok(p.name)
 }
 
+/// Imports an object that exports the Arrow C stream interface (`__arrow_c_stream__`: a
+/// pyarrow Table or RecordBatchReader, a polars DataFrame, a pandas ≥ 2.2 DataFrame with
+/// pyarrow) as record batches, without copying their buffers.
+fn arrow_batches(
+    table: &Bound<'_, PyAny>,
+) -> PyResult<(arrow_schema::SchemaRef, Vec<arrow_array::RecordBatch>)> {
+    use arrow_array::RecordBatchReader;
+    use arrow_array::ffi_stream::{FFI_ArrowArrayStream, RecordBatchStreamReader};
+    use pyo3::types::PyCapsule;
+
+    if !table.hasattr("__arrow_c_stream__")? {
+        return Err(PyTypeError::new_err(format!(
+            "table: expected a pandas or polars DataFrame or a pyarrow Table (an object with              __arrow_c_stream__), got {}",
+            type_name(table)
+        )));
+    }
+    let capsule = table.call_method0("__arrow_c_stream__")?;
+    let capsule = capsule.cast::<PyCapsule>().map_err(|_| {
+        PyTypeError::new_err("table: __arrow_c_stream__ did not return a PyCapsule")
+    })?;
+    let name = c"arrow_array_stream";
+    let ptr = capsule.pointer_checked(Some(name)).map_err(|_| {
+        PyTypeError::new_err(
+            "table: __arrow_c_stream__ returned a capsule that is not an arrow_array_stream",
+        )
+    })?;
+    // SAFETY: the capsule is an `arrow_array_stream` (checked above), so it points to a live
+    // `FFI_ArrowArrayStream` owned by the capsule. `from_raw` moves the stream out and leaves
+    // a released one behind, which the capsule's destructor then skips, as the Arrow PyCapsule
+    // interface prescribes for consumers.
+    #[allow(unsafe_code)]
+    let reader =
+        unsafe { RecordBatchStreamReader::from_raw(ptr.as_ptr().cast::<FFI_ArrowArrayStream>()) }
+            .map_err(|e| value_error("table", e))?;
+    let schema = reader.schema();
+    let batches = reader
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| value_error("table", e))?;
+    Ok((schema, batches))
+}
+
+/// Runs the envelope analysis on an Arrow-exporting table; returns `(envelope.json text,
+/// envelope.md text)`, the CLI's two outputs. `params` is the JSON of `EnvelopeParams`
+/// (missing fields take the defaults).
+#[pyfunction]
+#[pyo3(signature = (table, params, *, taxonomy="auto", allow_incomplete=false, name="<DataFrame>"))]
+fn envelope_analyze(
+    py: Python<'_>,
+    table: &Bound<'_, PyAny>,
+    params: &str,
+    taxonomy: &str,
+    allow_incomplete: bool,
+    name: &str,
+) -> PyResult<(String, String)> {
+    use fogline_envelope::TaxonomyChoice;
+    let mut p: fogline_envelope::EnvelopeParams =
+        serde_json::from_str(params).map_err(|e| value_error("parameters", e))?;
+    // As the CLI's --taxonomy: the paper's classes when the data has any of them, exactly
+    // the paper's, or the labels found in the data.
+    p.taxonomy = match taxonomy {
+        "auto" => TaxonomyChoice::Auto,
+        "paper" => TaxonomyChoice::Given(fogline_types::Taxonomy::paper()),
+        "data" => TaxonomyChoice::Given(fogline_types::Taxonomy {
+            classes: Vec::new(),
+            other: fogline_types::scenario::OTHER.into(),
+        }),
+        other => {
+            return Err(value_error(
+                "taxonomy",
+                format!("expected \"auto\", \"paper\" or \"data\", got {other:?}"),
+            ));
+        }
+    };
+    p.validate().map_err(|e| value_error("parameters", e))?;
+    let (schema, batches) = arrow_batches(table)?;
+    let opts = fogline_envelope::ReadOptions {
+        allow_incomplete,
+        ..fogline_envelope::ReadOptions::default()
+    };
+    py.detach(|| {
+        let t = fogline_envelope::read_pairs_arrow(
+            name,
+            &schema,
+            batches.into_iter().map(Ok::<_, std::convert::Infallible>),
+            &opts,
+        )?;
+        p.take_labels_from(&t);
+        let env = fogline_envelope::analyze(&t, &p)?;
+        let json = serde_json::to_string_pretty(&env).map_err(|e| {
+            fogline_envelope::EnvelopeError::InvalidParam {
+                name: "envelope",
+                reason: e.to_string(),
+            }
+        })?;
+        Ok((json, fogline_envelope::markdown::render(&env)))
+    })
+    .map_err(|e: fogline_envelope::EnvelopeError| PyValueError::new_err(e.to_string()))
+}
+
+/// The analysis parameters' defaults, as JSON (the field names `envelope_analyze` takes).
+#[pyfunction]
+fn envelope_defaults() -> PyResult<String> {
+    serde_json::to_string(&fogline_envelope::EnvelopeParams::default())
+        .map_err(|e| value_error("parameters", e))
+}
+
+/// Writes the synthetic pairs table of `clips` clips (the paper's scenario mix, eight
+/// conditions each) as CSV to `path`.
+#[pyfunction]
+#[pyo3(signature = (path, clips, *, seed=0))]
+fn envelope_synthetic_csv(path: std::path::PathBuf, clips: usize, seed: u64) -> PyResult<()> {
+    let p = fogline_envelope::synthetic::SyntheticParams {
+        n_clips: clips,
+        seed,
+    };
+    let mut w = std::io::BufWriter::new(std::fs::File::create(&path)?);
+    fogline_envelope::synthetic::write_csv(&p, &mut w)?;
+    std::io::Write::flush(&mut w)?;
+    Ok(())
+}
+
 /// The compiled half of the `fogline` package.
 #[pymodule]
 fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -458,5 +579,8 @@ fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(perturb, m)?)?;
     m.add_function(wrap_pyfunction!(stream_key, m)?)?;
     m.add_function(wrap_pyfunction!(condition_name, m)?)?;
+    m.add_function(wrap_pyfunction!(envelope_analyze, m)?)?;
+    m.add_function(wrap_pyfunction!(envelope_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(envelope_synthetic_csv, m)?)?;
     Ok(())
 }

@@ -22,4 +22,15 @@ def test_the_benchmark_runs_and_reports_ratios():
     assert r["ms"]["fogline"] > 0 and r["ms"]["numpy"] > 0
     assert r["speedup"]["numpy"] == r["ms"]["numpy"] / r["ms"]["fogline"]
     assert r["cpu"] and r["kernel"]
-    assert fogline.bench.main(["--width", "32", "--height", "16", "--repeat", "1"]) == 0
+    assert fogline.bench.main(["--width", "32", "--height", "16", "--repeat", "1",
+                               "--envelope-clips", "0"]) == 0
+
+
+def test_the_envelope_benchmark_times_python_against_the_cli():
+    import os
+
+    r = fogline.bench.run_envelope(clips=60, repeat=1, cli=os.environ.get("FOGLINE_BIN"))
+    assert r["rows"] == 480
+    assert r["seconds"]["python analyze(DataFrame)"] > 0
+    assert r["seconds"]["cli fogline envelope"] > 0
+    assert r["python_over_cli"] > 0

@@ -1,26 +1,40 @@
-"""Times fogline's Gaussian noise against numpy and albumentations, in one process.
+"""Times fogline's Gaussian noise against numpy and albumentations, and the envelope analysis
+of a DataFrame against the CLI on the same rows, in one process.
 
-    python -m fogline.bench                 # 1080p frame, sigma 30, 30 repetitions
+    python -m fogline.bench                 # 1080p frame, sigma 30, 30 repetitions; 16k-row envelope
     python -m fogline.bench --sigma 70 --repeat 50 --json
+    python -m fogline.bench --cli target/release/fogline --envelope-clips 4000
 
 Every contender runs on one thread on the same uint8 frame (a 1920 x 1080 RGB gradient with
 texture); each figure is the median wall time of ``--repeat`` calls after a warm-up call.
 albumentations (``pip install albumentations``) is optional: without it, its line says so.
 The machine (CPU model, kernel) is printed with the figures, since ratios are what carry
 over between machines.
+
+The envelope part writes the synthetic pairs table (``--envelope-clips`` clips x 8
+conditions; 2,000 clips = 16,000 rows) to a temporary CSV, reads it into a pandas DataFrame
+once, then times ``fogline.envelope.analyze(df)`` against ``fogline envelope pairs.csv``
+(the CLI binary from ``--cli``, ``$FOGLINE_BIN`` or ``PATH``; it reads the CSV and writes its
+outputs too), median of ``--envelope-repeat`` runs each, default parameters (10,000
+bootstrap resamples). It is skipped, saying why, without pandas or the binary.
 """
 
 import argparse
 import json
 import os
 import platform
+import shutil
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
 from ._fogline import perturb
+from . import envelope as _envelope
 
 
 def _cpu_model():
@@ -105,17 +119,61 @@ def run(width=1920, height=1080, sigma=30.0, repeat=30):
     return results
 
 
+def _find_cli(cli):
+    for c in (cli, os.environ.get("FOGLINE_BIN"), shutil.which("fogline")):
+        if c and Path(c).is_file():
+            return str(c)
+    return None
+
+
+def run_envelope(clips=2000, repeat=3, cli=None):
+    """The envelope figures as a dict: seconds per analysis in Python and in the CLI."""
+    r = {"clips": clips, "rows": clips * 8, "repeat": repeat, "seconds": {}}
+    try:
+        import pandas
+    except ImportError as e:
+        r["skipped"] = f"pandas is not installed ({e})"
+        return r
+    binary = _find_cli(cli)
+    with tempfile.TemporaryDirectory() as tmp:
+        pairs = Path(tmp) / "pairs.csv"
+        _envelope.write_synthetic_csv(pairs, clips=clips, seed=0)
+        df = pandas.read_csv(pairs)
+        r["seconds"]["python analyze(DataFrame)"] = _median_ms(lambda: _envelope.analyze(df), repeat) / 1e3
+        if binary is None:
+            r["skipped_cli"] = "no fogline binary: pass --cli PATH or set FOGLINE_BIN"
+            return r
+        r["cli"] = binary
+        out = Path(tmp) / "out"
+        cmd = [binary, "-q", "envelope", str(pairs), "--out", str(out)]
+        r["seconds"]["cli fogline envelope"] = _median_ms(
+            lambda: subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL), repeat
+        ) / 1e3
+        r["python_over_cli"] = (
+            r["seconds"]["python analyze(DataFrame)"] / r["seconds"]["cli fogline envelope"]
+        )
+    return r
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m fogline.bench", description=__doc__.splitlines()[0])
     p.add_argument("--width", type=int, default=1920)
     p.add_argument("--height", type=int, default=1080)
     p.add_argument("--sigma", type=float, default=30.0)
     p.add_argument("--repeat", type=int, default=30)
+    p.add_argument("--envelope-clips", type=int, default=2000,
+                   help="clips of the envelope part (x 8 rows; 0 skips it)")
+    p.add_argument("--envelope-repeat", type=int, default=3)
+    p.add_argument("--cli", help="the fogline binary the envelope part compares with")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     a = p.parse_args(argv)
     if a.repeat < 1 or a.width < 1 or a.height < 1 or not a.sigma >= 0:
         p.error("--repeat, --width and --height must be positive, --sigma non-negative")
     r = run(a.width, a.height, a.sigma, a.repeat)
+    env = None
+    if a.envelope_clips > 0:
+        env = run_envelope(a.envelope_clips, max(1, a.envelope_repeat), a.cli)
+        r["envelope"] = env
     if a.json:
         print(json.dumps(r, indent=2))
         return 0
@@ -130,6 +188,18 @@ def main(argv=None):
     if "albumentations_missing" in r:
         print(f"  albumentations GaussNoise    not installed ({r['albumentations_missing']}): "
               "pip install albumentations")
+    if env is not None:
+        print(f"Envelope analysis of {env['rows']:,} rows ({env['clips']:,} clips), default "
+              f"parameters, median of {env['repeat']} runs")
+        if "skipped" in env:
+            print(f"  skipped: {env['skipped']}")
+        for name, sec in env["seconds"].items():
+            print(f"  {name:<28} {sec:8.3f} s")
+        if "skipped_cli" in env:
+            print(f"  cli fogline envelope         skipped: {env['skipped_cli']}")
+        if "python_over_cli" in env:
+            print(f"  Python takes {env['python_over_cli']:.2f}x the CLI's time "
+                  f"({env['cli']})")
     return 0
 
 
