@@ -572,6 +572,167 @@ fn envelope_synthetic_csv(path: std::path::PathBuf, clips: usize, seed: u64) -> 
     Ok(())
 }
 
+/// The LLM-RCO controller, stepped once per control tick (the Python class `fogline.rco.
+/// Controller` wraps it; observations and decisions cross as JSON, frames as arrays).
+#[pyclass(module = "fogline._fogline")]
+struct RcoController {
+    /// Behind a mutex: a Python object may be touched from several threads.
+    rco: std::sync::Mutex<fogline_rco::Rco>,
+}
+
+impl RcoController {
+    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, fogline_rco::Rco>> {
+        self.rco
+            .lock()
+            .map_err(|_| PyValueError::new_err("the controller failed in another thread"))
+    }
+}
+
+#[pymethods]
+impl RcoController {
+    /// `params`: JSON of `RcoParams` (missing fields: the defaults); `backend`: `rules` or
+    /// `openai` with `openai` the JSON of `OpenAiParams`.
+    #[new]
+    #[pyo3(signature = (params, backend="rules", openai="{}"))]
+    fn new(params: &str, backend: &str, openai: &str) -> PyResult<Self> {
+        let params: fogline_rco::RcoParams =
+            serde_json::from_str(params).map_err(|e| value_error("parameters", e))?;
+        let backend: Box<dyn fogline_rco::Backend> = match backend {
+            "rules" => Box::new(fogline_rco::RulesBackend::default()),
+            "openai" => {
+                let p: fogline_rco::OpenAiParams =
+                    serde_json::from_str(openai).map_err(|e| value_error("openai", e))?;
+                Box::new(
+                    fogline_rco::OpenAiBackend::new(p)
+                        .map_err(|e| value_error("backend \"openai\"", e))?,
+                )
+            }
+            other => {
+                return Err(value_error(
+                    "backend",
+                    format!("expected \"rules\" or \"openai\", got {other:?}"),
+                ));
+            }
+        };
+        let rco =
+            fogline_rco::Rco::new(params, backend).map_err(|e| value_error("parameters", e))?;
+        Ok(Self {
+            rco: std::sync::Mutex::new(rco),
+        })
+    }
+
+    /// One tick: `observation` is the JSON of an `Observation` without pixels, `frames`
+    /// maps camera names to `H × W × 3` uint8 arrays (copied into the observation's views).
+    /// Returns the `Decision` as JSON and its one-line summary. The GIL is released while
+    /// the controller (and a remote backend) works.
+    fn step(
+        &self,
+        py: Python<'_>,
+        observation: &str,
+        frames: &Bound<'_, PyDict>,
+    ) -> PyResult<(String, String)> {
+        let mut obs: fogline_rco::Observation =
+            serde_json::from_str(observation).map_err(|e| value_error("observation", e))?;
+        for (camera, frame) in frames.iter() {
+            let name: String = camera
+                .extract()
+                .map_err(|_| PyTypeError::new_err("frames: keys must be camera names (str)"))?;
+            let what = format!("frames[{name:?}]");
+            let a = array_of::<u8>(&frame, &what, "uint8")?;
+            let shape = a.shape().to_vec();
+            let [h, w, 3] = shape[..] else {
+                return Err(value_error(
+                    &what,
+                    format!("expected shape (H, W, 3), got {shape:?}"),
+                ));
+            };
+            let camera: fogline_types::clip::CameraId = serde_json::from_value(
+                serde_json::Value::String(name.clone()),
+            )
+            .map_err(|_| {
+                value_error(
+                    &what,
+                    "unknown camera: expected cross_left, front_wide, cross_right or front_tele",
+                )
+            })?;
+            let view = obs
+                .views
+                .iter_mut()
+                .find(|v| v.camera == camera)
+                .ok_or_else(|| value_error(&what, "no view of that camera in the observation"))?;
+            if (view.width as usize, view.height as usize) != (w, h) {
+                return Err(value_error(
+                    &what,
+                    format!(
+                        "the array is {w}×{h} but the view says {}×{}",
+                        view.width, view.height
+                    ),
+                ));
+            }
+            let ro = a.try_readonly().map_err(|e| value_error(&what, e))?;
+            let bytes = ro.as_slice().map_err(|_| {
+                value_error(
+                    &what,
+                    "the array is not C-contiguous: pass np.ascontiguousarray(frame)",
+                )
+            })?;
+            view.rgb = Some(std::sync::Arc::from(bytes));
+        }
+        if let Err(e) = obs.validate() {
+            return Err(value_error("observation", e));
+        }
+        let mut guard = self.lock()?;
+        let rco = &mut *guard;
+        let decision = py.detach(|| rco.step(&obs));
+        let json = serde_json::to_string(&decision).map_err(|e| value_error("decision", e))?;
+        Ok((json, decision.summary()))
+    }
+
+    /// Forgets the plan, the hazards and the history (a new route).
+    fn reset(&self) -> PyResult<()> {
+        self.lock()?.reset();
+        Ok(())
+    }
+
+    /// The backend's description (`rules`, `openai model at URL`).
+    fn backend(&self) -> PyResult<String> {
+        Ok(self.lock()?.backend())
+    }
+}
+
+/// The bounding boxes `(x, y, width, height)` of the connected regions of a 2-D deficit mask
+/// (non-zero = lost), in first-pixel order.
+#[pyfunction]
+fn mask_boxes(mask: &Bound<'_, PyAny>) -> PyResult<Vec<(f64, f64, f64, f64)>> {
+    let what = "mask";
+    let a: Bound<'_, PyArrayDyn<u8>> = match mask.cast::<PyArrayDyn<bool>>() {
+        Ok(b) => b
+            .call_method1("astype", ("uint8",))?
+            .cast_into::<PyArrayDyn<u8>>()?,
+        Err(_) => array_of::<u8>(mask, what, "uint8")?,
+    };
+    let shape = a.shape().to_vec();
+    let [h, w] = shape[..] else {
+        return Err(value_error(
+            what,
+            format!("expected a 2-D (H, W) mask, got shape {shape:?}"),
+        ));
+    };
+    let ro = a.try_readonly().map_err(|e| value_error(what, e))?;
+    let bytes = ro.as_slice().map_err(|_| {
+        value_error(
+            what,
+            "the array is not C-contiguous: pass np.ascontiguousarray(mask)",
+        )
+    })?;
+    let boxes = fogline_rco::PixelBox::from_mask(bytes, w, h)
+        .ok_or_else(|| value_error(what, "its size does not match its shape"))?;
+    Ok(boxes
+        .iter()
+        .map(|b| (b.x_px, b.y_px, b.width_px, b.height_px))
+        .collect())
+}
+
 /// The compiled half of the `fogline` package.
 #[pymodule]
 fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -582,5 +743,7 @@ fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(envelope_analyze, m)?)?;
     m.add_function(wrap_pyfunction!(envelope_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(envelope_synthetic_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(mask_boxes, m)?)?;
+    m.add_class::<RcoController>()?;
     Ok(())
 }

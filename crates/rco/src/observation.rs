@@ -31,6 +31,87 @@ pub struct PixelBox {
 }
 
 impl PixelBox {
+    /// The bounding boxes of the connected regions (8-neighbourhood) of a `width × height`
+    /// row-major mask whose non-zero entries mark lost pixels: a segmentation-style deficit
+    /// mask as a CARLA agent or a dataset gives it, turned into the regions the controller
+    /// reasons about. Regions come in the order of their first pixel (top to bottom, left to
+    /// right). `None` when `mask` does not hold `width × height` entries.
+    pub fn from_mask(mask: &[u8], width: usize, height: usize) -> Option<Vec<PixelBox>> {
+        if width.checked_mul(height) != Some(mask.len()) {
+            return None;
+        }
+        // Union-find over the set pixels, one row at a time (classic two-pass labelling).
+        let mut parent: Vec<u32> = Vec::new();
+        let mut label = vec![u32::MAX; mask.len()];
+        fn root(parent: &mut [u32], mut i: u32) -> u32 {
+            while parent[i as usize] != i {
+                let p = parent[i as usize];
+                parent[i as usize] = parent[p as usize];
+                i = p;
+            }
+            i
+        }
+        for y in 0..height {
+            for x in 0..width {
+                let i = y * width + x;
+                if mask[i] == 0 {
+                    continue;
+                }
+                let mut mine = u32::MAX;
+                let neighbours = [
+                    (x > 0).then(|| i - 1),
+                    (y > 0 && x > 0).then(|| i - width - 1),
+                    (y > 0).then(|| i - width),
+                    (y > 0 && x + 1 < width).then(|| i - width + 1),
+                ];
+                for n in neighbours.into_iter().flatten() {
+                    let l = label[n];
+                    if l == u32::MAX {
+                        continue;
+                    }
+                    let r = root(&mut parent, l);
+                    if mine == u32::MAX {
+                        mine = r;
+                    } else if r != mine {
+                        let (lo, hi) = (mine.min(r), mine.max(r));
+                        parent[hi as usize] = lo;
+                        mine = lo;
+                    }
+                }
+                if mine == u32::MAX {
+                    mine = parent.len() as u32;
+                    parent.push(mine);
+                }
+                label[i] = mine;
+            }
+        }
+        // Bounds per root, in the order roots were created (first pixel order).
+        let mut bounds: Vec<Option<[usize; 4]>> = vec![None; parent.len()];
+        for (i, &l) in label.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
+            }
+            let r = root(&mut parent, l) as usize;
+            let (x, y) = (i % width, i / width);
+            let b = bounds[r].get_or_insert([x, y, x, y]);
+            *b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+        }
+        Some(
+            bounds
+                .into_iter()
+                .flatten()
+                .map(|[x0, y0, x1, y1]| {
+                    PixelBox::new(
+                        x0 as f64,
+                        y0 as f64,
+                        (x1 - x0 + 1) as f64,
+                        (y1 - y0 + 1) as f64,
+                    )
+                })
+                .collect(),
+        )
+    }
+
     /// A box from its left, top, width and height.
     pub fn new(x_px: f64, y_px: f64, width_px: f64, height_px: f64) -> Self {
         Self {
@@ -505,5 +586,44 @@ mod rgb_base64 {
                 .map(|b| Some(Arc::from(b)))
                 .map_err(serde::de::Error::custom),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PixelBox;
+
+    #[test]
+    fn mask_regions_become_their_bounding_boxes() {
+        #[rustfmt::skip]
+        let mask: [u8; 7 * 5] = [
+            0, 1, 1, 0, 0, 0, 0,
+            0, 1, 0, 0, 0, 0, 1,
+            0, 0, 0, 0, 0, 1, 0, // diagonal neighbours join (8-neighbourhood)
+            1, 0, 0, 0, 1, 0, 0,
+            1, 1, 0, 0, 0, 0, 0,
+        ];
+        let boxes = PixelBox::from_mask(&mask, 7, 5).expect("sizes fit");
+        assert_eq!(
+            boxes,
+            vec![
+                PixelBox::new(1.0, 0.0, 2.0, 2.0),
+                PixelBox::new(4.0, 1.0, 3.0, 3.0),
+                PixelBox::new(0.0, 3.0, 2.0, 2.0),
+            ]
+        );
+        // A U shape is one region even though its arms meet only at the bottom.
+        #[rustfmt::skip]
+        let u: [u8; 4 * 3] = [
+            1, 0, 0, 1,
+            1, 0, 0, 1,
+            1, 1, 1, 1,
+        ];
+        assert_eq!(
+            PixelBox::from_mask(&u, 4, 3),
+            Some(vec![PixelBox::new(0.0, 0.0, 4.0, 3.0)])
+        );
+        assert_eq!(PixelBox::from_mask(&[0; 12], 4, 3), Some(vec![]));
+        assert_eq!(PixelBox::from_mask(&[0; 11], 4, 3), None);
     }
 }

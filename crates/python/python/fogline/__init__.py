@@ -17,7 +17,7 @@ The user guide is ``docs/python.md`` in the repository.
 
 from ._fogline import __version__, condition_name, stream_key
 from ._fogline import perturb as _perturb
-from . import envelope
+from . import envelope, rco
 from .transforms import AlbuPerturb, Perturb
 
 __all__ = [
@@ -28,6 +28,7 @@ __all__ = [
     "Perturb",
     "AlbuPerturb",
     "envelope",
+    "rco",
 ]
 
 

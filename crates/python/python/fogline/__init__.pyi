@@ -4,6 +4,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ._fogline import Box, Key, __version__, condition_name, stream_key
+from . import envelope as envelope
+from . import rco as rco
 from .transforms import AlbuPerturb, Perturb
 
 @overload
