@@ -10,7 +10,6 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
-use fogline_world::config::SCENARIOS;
 use fogline_world::{Clip, ScenarioMix, WorldConfig};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -114,18 +113,6 @@ pub fn world(a: WorldArgs) -> Result<ExitCode> {
     }
 }
 
-/// `total` clips spread evenly over the scenarios (the first ones get the remainder).
-fn uniform(total: usize) -> ScenarioMix {
-    let n = SCENARIOS.len();
-    ScenarioMix {
-        counts: SCENARIOS
-            .iter()
-            .enumerate()
-            .map(|(i, s)| (s.to_string(), total / n + usize::from(i < total % n)))
-            .collect(),
-    }
-}
-
 fn generate(a: GenerateArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     if a.clips == 0 {
@@ -137,7 +124,7 @@ fn generate(a: GenerateArgs) -> Result<ExitCode> {
     let mix = match (&a.scenario, a.mix) {
         (Some(s), _) => ScenarioMix::only(s, a.clips).context("--scenario")?,
         (None, MixArg::Paper) => ScenarioMix::paper_scaled(a.clips),
-        (None, MixArg::Uniform) => uniform(a.clips),
+        (None, MixArg::Uniform) => ScenarioMix::spread(a.clips),
     };
     let config = WorldConfig {
         seed: a.seed,

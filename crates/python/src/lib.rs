@@ -733,6 +733,278 @@ fn mask_boxes(mask: &Bound<'_, PyAny>) -> PyResult<Vec<(f64, f64, f64, f64)>> {
         .collect())
 }
 
+/// A camera from its snake-case name.
+fn camera_of(name: &str, what: &str) -> PyResult<fogline_types::clip::CameraId> {
+    serde_json::from_value(serde_json::Value::String(name.to_string())).map_err(|_| {
+        value_error(
+            what,
+            format!("unknown camera {name:?}: expected cross_left, front_wide, cross_right or front_tele"),
+        )
+    })
+}
+
+fn camera_name(id: fogline_types::clip::CameraId) -> String {
+    serde_json::to_value(id)
+        .ok()
+        .and_then(|v| v.as_str().map(String::from))
+        .unwrap_or_default()
+}
+
+/// Generates clip `index` of a world corpus, as `fogline world generate` would write it:
+/// a dict with `id`, `scenario`, `scene` (JSON text), `ego_history` (`N × 5`: t, x, y, yaw,
+/// speed), `ground_truth` (`64 × 2`) and `cameras` (name → dict with `calib` (JSON text),
+/// `frames` (`T × H × W × 3` uint8), `depth` (`T × H × W` float32 or `None`), `boxes` (per
+/// frame, a list of dicts)).
+#[pyfunction]
+#[pyo3(signature = (index, *, clips, seed, mix, scenario, width, height, depth, cameras))]
+#[allow(clippy::too_many_arguments)]
+fn world_clip<'py>(
+    py: Python<'py>,
+    index: usize,
+    clips: usize,
+    seed: u64,
+    mix: &str,
+    scenario: Option<&str>,
+    width: u32,
+    height: u32,
+    depth: bool,
+    cameras: Option<Vec<String>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use fogline_world::{ScenarioMix, WorldConfig};
+    if clips == 0 {
+        return Err(value_error("clips", "must be at least 1"));
+    }
+    let mix = match (scenario, mix) {
+        (Some(s), _) => ScenarioMix::only(s, clips).map_err(|e| value_error("scenario", e))?,
+        (None, "paper") => ScenarioMix::paper_scaled(clips),
+        (None, "uniform") => ScenarioMix::spread(clips),
+        (None, other) => {
+            return Err(value_error(
+                "mix",
+                format!("expected \"paper\" or \"uniform\", got {other:?}"),
+            ));
+        }
+    };
+    if index >= clips {
+        return Err(value_error(
+            "index",
+            format!("{index} is not below clips={clips}"),
+        ));
+    }
+    let config = WorldConfig {
+        seed,
+        width,
+        height,
+        depth,
+        mix,
+    };
+    let cams = match &cameras {
+        None => fogline_types::clip::CameraId::ALL.to_vec(),
+        Some(names) => names
+            .iter()
+            .map(|n| camera_of(n, "cameras"))
+            .collect::<PyResult<_>>()?,
+    };
+    let clip = py
+        .detach(|| fogline_world::generate_clip_cameras(&config, index, &cams))
+        .map_err(|e| value_error("world", e))?;
+
+    let out = PyDict::new(py);
+    out.set_item("id", &clip.id)?;
+    out.set_item("scenario", &clip.scenario)?;
+    out.set_item(
+        "scene",
+        serde_json::to_string(&clip.scene).map_err(|e| value_error("scene", e))?,
+    )?;
+    let hist: Vec<f64> = clip
+        .ego_history
+        .iter()
+        .flat_map(|p| [p.t_s, p.x_m, p.y_m, p.yaw_rad, p.speed_mps])
+        .collect();
+    let n = clip.ego_history.len();
+    out.set_item(
+        "ego_history",
+        numpy::PyArray1::from_vec(py, hist).reshape([n, 5])?,
+    )?;
+    let gt: Vec<f64> = clip.ground_truth.xy.iter().flatten().copied().collect();
+    let k = clip.ground_truth.xy.len();
+    out.set_item(
+        "ground_truth",
+        numpy::PyArray1::from_vec(py, gt).reshape([k, 2])?,
+    )?;
+    let cams = PyDict::new(py);
+    for cam in clip.cameras {
+        let c = PyDict::new(py);
+        let (w, h, t) = (
+            cam.calib.width as usize,
+            cam.calib.height as usize,
+            cam.frames.len(),
+        );
+        c.set_item(
+            "calib",
+            serde_json::to_string(&cam.calib).map_err(|e| value_error("calib", e))?,
+        )?;
+        let mut rgb = Vec::with_capacity(t * w * h * 3);
+        let mut dep = Vec::with_capacity(if depth { t * w * h } else { 0 });
+        let boxes = PyList::empty(py);
+        for f in &cam.frames {
+            rgb.extend_from_slice(f.image.data());
+            if let Some(d) = &f.depth {
+                dep.extend_from_slice(d.depth_m());
+            }
+            let fb = PyList::empty(py);
+            for b in &f.boxes {
+                let d = PyDict::new(py);
+                d.set_item("class", &b.class)?;
+                d.set_item("track_id", b.track_id)?;
+                d.set_item("x", b.x_px)?;
+                d.set_item("y", b.y_px)?;
+                d.set_item("width", b.width_px)?;
+                d.set_item("height", b.height_px)?;
+                fb.append(d)?;
+            }
+            boxes.append(fb)?;
+        }
+        c.set_item(
+            "frames",
+            numpy::PyArray1::from_vec(py, rgb).reshape([t, h, w, 3])?,
+        )?;
+        if dep.len() == t * w * h && depth {
+            c.set_item(
+                "depth",
+                numpy::PyArray1::from_vec(py, dep).reshape([t, h, w])?,
+            )?;
+        } else {
+            c.set_item("depth", py.None())?;
+        }
+        c.set_item("boxes", boxes)?;
+        cams.set_item(camera_name(cam.calib.id), c)?;
+    }
+    out.set_item("cameras", cams)?;
+    Ok(out)
+}
+
+/// The world's scenario labels, in its order.
+#[pyfunction]
+fn world_scenarios() -> Vec<&'static str> {
+    fogline_world::config::SCENARIOS.to_vec()
+}
+
+/// Runs the reference planner on frames: `cameras` maps camera names to `T × H × W × 3`
+/// uint8 arrays (frames oldest first; `front_wide` needed), `calibs` optionally maps names
+/// to calibration JSON (default: the standard rig at the frames' size), `ego_history` is
+/// `N × 5` (t, x, y, yaw, speed). Returns the `PlannerOutput` as JSON.
+#[pyfunction]
+#[pyo3(signature = (cameras, ego_history, calibs=None))]
+fn planner_plan(
+    py: Python<'_>,
+    cameras: &Bound<'_, PyDict>,
+    ego_history: &Bound<'_, PyAny>,
+    calibs: Option<&Bound<'_, PyDict>>,
+) -> PyResult<String> {
+    use fogline_types::clip::{CameraCalib, CameraInput, EgoPose, PlannerInput};
+    let hist = array_of::<f64>(ego_history, "ego_history", "float64")?;
+    let shape = hist.shape().to_vec();
+    let [n, 5] = shape[..] else {
+        return Err(value_error(
+            "ego_history",
+            format!("expected shape (N, 5): t, x, y, yaw, speed per row, got {shape:?}"),
+        ));
+    };
+    let hist = hist
+        .try_readonly()
+        .map_err(|e| value_error("ego_history", e))?;
+    let h = hist
+        .as_slice()
+        .map_err(|_| value_error("ego_history", "the array is not C-contiguous"))?;
+    let poses: Vec<EgoPose> = (0..n)
+        .map(|i| EgoPose {
+            t_s: h[i * 5],
+            x_m: h[i * 5 + 1],
+            y_m: h[i * 5 + 2],
+            yaw_rad: h[i * 5 + 3],
+            speed_mps: h[i * 5 + 4],
+        })
+        .collect();
+    if poses.iter().any(|p| {
+        ![p.t_s, p.x_m, p.y_m, p.yaw_rad, p.speed_mps]
+            .iter()
+            .all(|v| v.is_finite())
+    }) {
+        return Err(value_error("ego_history", "every value must be finite"));
+    }
+    // Keep the arrays' read guards alive while the planner borrows their bytes.
+    let mut guards = Vec::new();
+    let mut specs = Vec::new();
+    for (name, frames) in cameras.iter() {
+        let name: String = name
+            .extract()
+            .map_err(|_| PyTypeError::new_err("cameras: keys must be camera names (str)"))?;
+        let what = format!("cameras[{name:?}]");
+        let id = camera_of(&name, &what)?;
+        let a = array_of::<u8>(&frames, &what, "uint8")?;
+        let shape = a.shape().to_vec();
+        let (t, hh, ww) = match shape[..] {
+            [t, hh, ww, 3] => (t, hh, ww),
+            [hh, ww, 3] => (1, hh, ww),
+            _ => {
+                return Err(value_error(
+                    &what,
+                    format!("expected shape (T, H, W, 3) or (H, W, 3), got {shape:?}"),
+                ));
+            }
+        };
+        if t == 0 {
+            return Err(value_error(&what, "no frame"));
+        }
+        let (w32, h32) = (
+            u32::try_from(ww).map_err(|_| value_error(&what, "too wide"))?,
+            u32::try_from(hh).map_err(|_| value_error(&what, "too tall"))?,
+        );
+        let calib = match calibs.and_then(|c| c.get_item(&name).ok().flatten()) {
+            Some(text) => {
+                let text: String = text.extract().map_err(|_| {
+                    PyTypeError::new_err(format!(
+                        "calibs[{name:?}]: expected calibration JSON text"
+                    ))
+                })?;
+                let c: CameraCalib = serde_json::from_str(&text)
+                    .map_err(|e| value_error(&format!("calibs[{name:?}]"), e))?;
+                if (c.width, c.height) != (w32, h32) || c.id != id {
+                    return Err(value_error(
+                        &format!("calibs[{name:?}]"),
+                        "its camera or size does not match the frames",
+                    ));
+                }
+                c
+            }
+            None => CameraCalib::standard(id, w32, h32),
+        };
+        guards.push(a.try_readonly().map_err(|e| value_error(&what, e))?);
+        specs.push((calib, t, what));
+    }
+    let mut inputs = Vec::new();
+    for (g, (calib, t, what)) in guards.iter().zip(specs) {
+        let bytes = g
+            .as_slice()
+            .map_err(|_| value_error(&what, "the array is not C-contiguous"))?;
+        let per = bytes.len() / t;
+        inputs.push(CameraInput {
+            calib,
+            frames: bytes.chunks_exact(per).collect(),
+        });
+    }
+    let input = PlannerInput {
+        cameras: inputs,
+        ego_history: &poses,
+    };
+    let planner = fogline_planner::ReferencePlanner::new();
+    let out = py
+        .detach(|| planner.plan(&input))
+        .map_err(|e| value_error("cameras", e))?;
+    serde_json::to_string(&out).map_err(|e| value_error("output", e))
+}
+
 /// The compiled half of the `fogline` package.
 #[pymodule]
 fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -744,6 +1016,9 @@ fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(envelope_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(envelope_synthetic_csv, m)?)?;
     m.add_function(wrap_pyfunction!(mask_boxes, m)?)?;
+    m.add_function(wrap_pyfunction!(world_clip, m)?)?;
+    m.add_function(wrap_pyfunction!(world_scenarios, m)?)?;
+    m.add_function(wrap_pyfunction!(planner_plan, m)?)?;
     m.add_class::<RcoController>()?;
     Ok(())
 }

@@ -96,6 +96,19 @@ impl ScenarioMix {
         })
     }
 
+    /// `total` clips spread evenly over the eight scenarios (the first ones get the
+    /// remainder): the CLI's `--mix uniform`.
+    pub fn spread(total: usize) -> Self {
+        let n = SCENARIOS.len();
+        Self {
+            counts: SCENARIOS
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (s.to_string(), total / n + usize::from(i < total % n)))
+                .collect(),
+        }
+    }
+
     /// Total clips.
     pub fn total(&self) -> usize {
         self.counts.iter().map(|(_, n)| n).sum()

@@ -17,7 +17,7 @@ The user guide is ``docs/python.md`` in the repository.
 
 from ._fogline import __version__, condition_name, stream_key
 from ._fogline import perturb as _perturb
-from . import envelope, rco
+from . import envelope, planner, rco, world
 from .transforms import AlbuPerturb, Perturb
 
 __all__ = [
@@ -29,6 +29,8 @@ __all__ = [
     "AlbuPerturb",
     "envelope",
     "rco",
+    "world",
+    "planner",
 ]
 
 

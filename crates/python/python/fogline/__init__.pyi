@@ -5,7 +5,9 @@ import numpy.typing as npt
 
 from ._fogline import Box, Key, __version__, condition_name, stream_key
 from . import envelope as envelope
+from . import planner as planner
 from . import rco as rco
+from . import world as world
 from .transforms import AlbuPerturb, Perturb
 
 @overload
