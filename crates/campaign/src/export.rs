@@ -407,23 +407,12 @@ pub fn write_atomic(
     path: &Path,
     fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), String>,
 ) -> Result<(), CampaignError> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let res = (|| -> Result<(), String> {
-        let f = std::fs::File::create(&tmp).map_err(|e| e.to_string())?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
-        fill(&mut w)?;
-        let f = w.into_inner().map_err(|e| e.error().to_string())?;
-        f.sync_all().map_err(|e| e.to_string())?;
-        std::fs::rename(&tmp, path).map_err(|e| e.to_string())
-    })();
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res.map_err(|reason| CampaignError::Export {
-        path: path.to_path_buf(),
-        reason,
+    fogline_io::write_atomic_with(path, |w| fill(w).map_err(std::io::Error::other)).map_err(|e| {
+        CampaignError::Export {
+            path: path.to_path_buf(),
+            reason: fogline_io::atomic::WriteError::of(&e)
+                .map_or_else(|| e.to_string(), |w| w.source.to_string()),
+        }
     })
 }
 

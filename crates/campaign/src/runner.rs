@@ -233,6 +233,21 @@ pub trait Progress: Sync {
 pub struct Silent;
 impl Progress for Silent {}
 
+/// The shared progress bar counts runs (failed ones as failures) over the pending total.
+impl Progress for fogline_io::Progress {
+    fn begin(&self, pending: usize, _done: usize) {
+        self.set_total(pending);
+    }
+
+    fn finished(&self, run: &RunRecord) {
+        if matches!(run.outcome, crate::store::Outcome::Failed { .. }) {
+            self.inc_failed();
+        } else {
+            self.inc();
+        }
+    }
+}
+
 /// What a call of [`run`] did.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RunSummary {

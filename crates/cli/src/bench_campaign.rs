@@ -78,7 +78,7 @@ pub fn bench_campaign(a: BenchCampaignArgs) -> Result<ExitCode> {
         let mut store = Store::create(&store_path, &campaign.store_meta(Shard::ALL))?;
         let opts = fogline_campaign::run_options(&cfg, Shard::ALL);
         let planner = fogline_campaign::BuiltinPlanner::new();
-        let progress = crate::campaign_cmd::RunProgress::new();
+        let progress = fogline_io::Progress::new(0, "runs");
         let s = fogline_campaign::run(&campaign, &mut store, &planner, &opts, &progress)?;
         progress.finish();
         let runs = store.runs()?;

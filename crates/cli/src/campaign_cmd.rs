@@ -1,17 +1,12 @@
 //! `fogline campaign run | status | export | merge | init`.
 
-use std::io::{IsTerminal as _, Write as _};
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use fogline_campaign::export::{ExportSummary, Formats};
-use fogline_campaign::runner::Progress;
-use fogline_campaign::store::{Outcome, RunRecord};
 use fogline_campaign::{Campaign, CampaignConfig, RunSummary, Shard, Store};
 
 /// Arguments of `fogline campaign`.
@@ -131,102 +126,6 @@ fn default_store(config: &Path, shard: Shard) -> PathBuf {
     }
 }
 
-/// A progress bar with rate and ETA on a terminal; a log line every 30 s otherwise.
-pub(crate) struct RunProgress {
-    total: AtomicUsize,
-    before: AtomicUsize,
-    done: AtomicUsize,
-    failed: AtomicUsize,
-    start: Instant,
-    last: Mutex<Instant>,
-    tty: bool,
-    enabled: bool,
-}
-
-impl RunProgress {
-    pub(crate) fn new() -> Self {
-        Self {
-            total: AtomicUsize::new(0),
-            before: AtomicUsize::new(0),
-            done: AtomicUsize::new(0),
-            failed: AtomicUsize::new(0),
-            start: Instant::now(),
-            last: Mutex::new(Instant::now()),
-            tty: std::io::stderr().is_terminal(),
-            enabled: log::log_enabled!(log::Level::Info),
-        }
-    }
-
-    fn line(&self) -> String {
-        let total = self.total.load(Ordering::Relaxed);
-        let done = self.done.load(Ordering::Relaxed);
-        let failed = self.failed.load(Ordering::Relaxed);
-        let secs = self.start.elapsed().as_secs_f64().max(1e-9);
-        let rate = done as f64 / secs;
-        let eta = if rate > 0.0 {
-            fmt_duration((total - done) as f64 / rate)
-        } else {
-            "?".into()
-        };
-        let width = 28;
-        let filled = width * done / total.max(1);
-        format!(
-            "[{}{}] {done}/{total} runs · {failed} failed · {rate:.1} runs/s · ETA {eta}",
-            "#".repeat(filled),
-            " ".repeat(width - filled),
-        )
-    }
-
-    pub(crate) fn finish(&self) {
-        if self.enabled && self.tty && self.total.load(Ordering::Relaxed) > 0 {
-            eprintln!("\r{}", self.line());
-        }
-    }
-}
-
-impl Progress for RunProgress {
-    fn begin(&self, pending: usize, done: usize) {
-        self.total.store(pending, Ordering::Relaxed);
-        self.before.store(done, Ordering::Relaxed);
-    }
-
-    fn finished(&self, run: &RunRecord) {
-        self.done.fetch_add(1, Ordering::Relaxed);
-        if matches!(run.outcome, Outcome::Failed { .. }) {
-            self.failed.fetch_add(1, Ordering::Relaxed);
-        }
-        if !self.enabled {
-            return;
-        }
-        let every = if self.tty {
-            Duration::from_millis(100)
-        } else {
-            Duration::from_secs(30)
-        };
-        if let Ok(mut last) = self.last.try_lock()
-            && last.elapsed() >= every
-        {
-            *last = Instant::now();
-            if self.tty {
-                eprint!("\r{}", self.line());
-            } else {
-                log::info!("{}", self.line());
-            }
-        }
-    }
-}
-
-fn fmt_duration(s: f64) -> String {
-    let s = s.round() as u64;
-    if s >= 3600 {
-        format!("{}h{:02}m", s / 3600, (s % 3600) / 60)
-    } else if s >= 60 {
-        format!("{}m{:02}s", s / 60, s % 60)
-    } else {
-        format!("{s}s")
-    }
-}
-
 /// Runs (or resumes) a campaign into `store_path`; returns the summary.
 pub(crate) fn run_campaign(
     config: CampaignConfig,
@@ -257,7 +156,7 @@ pub(crate) fn run_campaign(
         planner.describe(),
         store_path.display()
     );
-    let progress = RunProgress::new();
+    let progress = fogline_io::Progress::new(0, "runs");
     let summary = fogline_campaign::run(&campaign, &mut store, planner.as_ref(), &opts, &progress)?;
     progress.finish();
     Ok((campaign, summary))

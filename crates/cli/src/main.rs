@@ -349,31 +349,9 @@ fn gate(env: &Envelope) -> ExitCode {
     }
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory, so a reader
-/// never sees a half-written file and a failure leaves the previous file in place.
+/// Writes `bytes` to `path` atomically ([`fogline_io::write_atomic`]).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomic_with(path, |w| w.write_all(bytes))
-}
-
-/// [`write_atomic`] for content streamed by `fill`.
-fn write_atomic_with(
-    path: &Path,
-    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let res = (|| -> std::io::Result<()> {
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
-        fill(&mut w)?;
-        let f = w.into_inner().map_err(|e| e.into_error())?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res.with_context(|| format!("cannot write {}", path.display()))
+    Ok(fogline_io::write_atomic(path, bytes)?)
 }
 
 struct Written {
@@ -391,8 +369,7 @@ fn write_outputs(
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let json = serde_json::to_vec_pretty(env).context("cannot serialise the envelope")?;
     let md = fogline_envelope::markdown::render(env);
-    let odd = serde_json::to_vec_pretty(&odd_spec(env))
-        .context("cannot serialise the ODD specification")?;
+    let odd = env.odd_spec().to_json();
     let w = Written {
         json: dir.join("envelope.json"),
         markdown: dir.join("envelope.md"),
@@ -401,27 +378,9 @@ fn write_outputs(
     };
     write_atomic(&w.json, &json)?;
     write_atomic(&w.markdown, md.as_bytes())?;
-    write_atomic(&w.odd, &odd)?;
+    write_atomic(&w.odd, odd.as_bytes())?;
     report_cmd::write_report(env, Some(table), &w.report)?;
     Ok(w)
-}
-
-/// The ODD specification file: what a runtime monitor loads.
-fn odd_spec(env: &Envelope) -> serde_json::Value {
-    let p = &env.parameters;
-    serde_json::json!({
-        "schema_version": 1,
-        "kind": "fogline.odd",
-        "generated_by": env.generated_by,
-        "input_sha256": env.input.sha256,
-        "axis": env.odd.first().map(|o| o.axis.clone()),
-        "budget": p.headline_budget,
-        "rule": p.rule.name(),
-        "high_bands": env.high_severity.bands,
-        "pi_star": p.pi_star,
-        "sigma_op": p.sigma_op,
-        "entries": env.odd,
-    })
 }
 
 fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {

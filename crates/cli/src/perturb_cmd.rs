@@ -3,11 +3,9 @@
 //! peers).
 
 use std::collections::BTreeMap;
-use std::io::{IsTerminal as _, Write as _};
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -17,11 +15,12 @@ use fogline_perturb::{
     DeficitRegion, DepthMap, Frame, FrameInput, FrameKey, FrameSource, ObjectBox, Outline,
     PerturbError, Perturbation, Prepared, Step,
 };
-use image::{ColorType, ImageEncoder as _};
+use image::ColorType;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::write_atomic;
+use fogline_io::Progress;
 
 /// Name of the manifest written last into the output directory.
 const MANIFEST: &str = "perturb.json";
@@ -296,7 +295,7 @@ pub fn perturb(a: PerturbArgs) -> Result<ExitCode> {
         boxes: a.boxes.as_deref().zip(boxes.as_ref()),
         jpeg_quality: a.jpeg_quality,
     };
-    let progress = Progress::new(tasks.len());
+    let progress = Progress::new(tasks.len(), "frames");
     let records: Vec<FrameRecord> = tasks
         .par_iter()
         .map(|t| {
@@ -524,19 +523,13 @@ fn read_depth(path: &Path, scale: f64) -> Result<DepthMap> {
 }
 
 fn encode(frame: &Frame, format: Format, jpeg_quality: u8) -> Result<Vec<u8>> {
-    let mut buf = Vec::new();
-    let (w, h) = (frame.width(), frame.height());
-    match format {
-        Format::Png => image::codecs::png::PngEncoder::new(&mut buf).write_image(
-            frame.data(),
-            w,
-            h,
-            image::ExtendedColorType::Rgb8,
-        )?,
-        Format::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, jpeg_quality)
-            .write_image(frame.data(), w, h, image::ExtendedColorType::Rgb8)?,
-    }
-    Ok(buf)
+    let format = match format {
+        Format::Png => fogline_io::ImageFormat::Png,
+        Format::Jpeg => fogline_io::ImageFormat::Jpeg {
+            quality: jpeg_quality,
+        },
+    };
+    fogline_io::encode(frame.data(), frame.width(), frame.height(), format).map_err(|e| anyhow!(e))
 }
 
 fn process(job: &Job<'_>, t: &Task) -> Result<FrameRecord> {
@@ -610,62 +603,6 @@ fn process(job: &Job<'_>, t: &Task) -> Result<FrameRecord> {
         source,
         deficits,
     })
-}
-
-/// A one-line progress counter on stderr, shown only when stderr is a terminal.
-pub(crate) struct Progress {
-    total: usize,
-    done: AtomicUsize,
-    enabled: bool,
-    last: Mutex<Instant>,
-    /// What is counted (`frames`, `clips`).
-    unit: &'static str,
-}
-
-impl Progress {
-    /// A bar over `total` frames.
-    pub(crate) fn new(total: usize) -> Self {
-        Self::counting(total, "frames")
-    }
-
-    /// A bar over `total` items called `unit`; drawn on stderr only when it is a terminal and
-    /// info logging is on.
-    pub(crate) fn counting(total: usize, unit: &'static str) -> Self {
-        Self {
-            total,
-            done: AtomicUsize::new(0),
-            enabled: std::io::stderr().is_terminal() && log::log_enabled!(log::Level::Info),
-            last: Mutex::new(Instant::now()),
-            unit,
-        }
-    }
-
-    pub(crate) fn inc(&self) {
-        let done = self.done.fetch_add(1, Ordering::Relaxed) + 1;
-        if !self.enabled {
-            return;
-        }
-        if let Ok(mut last) = self.last.try_lock()
-            && (last.elapsed() >= Duration::from_millis(100) || done == self.total)
-        {
-            *last = Instant::now();
-            let width = 30;
-            let filled = width * done / self.total.max(1);
-            eprint!(
-                "\r[{}{}] {done}/{} {}",
-                "#".repeat(filled),
-                " ".repeat(width - filled),
-                self.total,
-                self.unit
-            );
-        }
-    }
-
-    pub(crate) fn finish(&self) {
-        if self.enabled {
-            eprintln!();
-        }
-    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::write_atomic;
-use crate::perturb_cmd::Progress;
+use fogline_io::Progress;
 
 /// Kind and version of the `--json` file of `fogline planner eval`.
 const EVAL_KIND: &str = "fogline.planner_eval";
@@ -527,7 +527,7 @@ fn eval(a: EvalArgs) -> Result<ExitCode> {
         a.perturb_seed
     );
     let t0 = Instant::now();
-    let progress = Progress::counting(a.clips, "clips");
+    let progress = Progress::new(a.clips, "clips");
     // An indexed parallel iterator collects in index order: the records do not depend on the
     // number of threads (only the timings do).
     let evals = (0..a.clips)
@@ -747,7 +747,7 @@ pub fn bench_world(a: BenchWorldArgs) -> Result<ExitCode> {
 
     // (a) generation + rendering on every core. One clip first, untimed, to warm up.
     std::hint::black_box(generate_clip(&cfg, 0)?);
-    let progress = Progress::counting(a.clips, "clips");
+    let progress = Progress::new(a.clips, "clips");
     let t = Instant::now();
     let bytes: usize = (0..a.clips)
         .into_par_iter()
@@ -783,7 +783,7 @@ pub fn bench_world(a: BenchWorldArgs) -> Result<ExitCode> {
     let mut plan_ms: Vec<Vec<f64>> = vec![Vec::with_capacity(plan_clips); conditions.len()];
     let mut failures: BTreeMap<(usize, String), usize> = BTreeMap::new();
     let batch = (2 * threads).max(1);
-    let progress = Progress::counting(plan_clips, "clips planned");
+    let progress = Progress::new(plan_clips, "clips planned");
     let mut warmed = false;
     for start in (0..plan_clips).step_by(batch) {
         let end = (start + batch).min(plan_clips);

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::write_atomic;
-use crate::perturb_cmd::Progress;
+use fogline_io::Progress;
 
 /// Name of the corpus manifest, written last into the output directory.
 const CORPUS: &str = "corpus.json";
@@ -168,7 +168,7 @@ fn generate(a: GenerateArgs) -> Result<ExitCode> {
         if config.depth { " + depth" } else { "" },
         a.out.display()
     );
-    let progress = Progress::counting(total, "clips");
+    let progress = Progress::new(total, "clips");
     let work = || -> Result<Vec<CorpusClip>> {
         (0..total)
             .into_par_iter()

@@ -646,8 +646,8 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             right_censored: th.right_censored,
             ci95: th.ci95,
             p_high,
-            threshold_group,
-            severity_group,
+            threshold_group: threshold_group.into(),
+            severity_group: severity_group.into(),
             quadrant: format!("{threshold_group} + {severity_group}"),
             accepted,
             acceptance_reason,
@@ -723,10 +723,6 @@ fn bands_mode(p: &EnvelopeParams) -> &'static str {
         Bands::Auto => "auto",
         Bands::Fixed(_) => "fixed",
     }
-}
-
-pub(crate) fn finite(x: f64) -> Option<f64> {
-    x.is_finite().then_some(x)
 }
 
 fn severity_from(sel: &gmm::Selection, x: &[f64], p: &EnvelopeParams) -> (Severity, Vec<usize>) {

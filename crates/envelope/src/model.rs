@@ -329,42 +329,9 @@ pub struct Joint {
     pub row_shares: Vec<Vec<f64>>,
 }
 
-/// The two-dimensional ODD entry of one scenario (table 4).
-#[derive(Debug, Clone, Serialize)]
-pub struct OddEntry {
-    /// Scenario.
-    pub scenario: String,
-    /// Rank in the taxonomy.
-    pub rank: Option<usize>,
-    /// Clips.
-    pub n_clips: usize,
-    /// Changed pairs.
-    pub n_changed: usize,
-    /// Fewer clips than `min_clips`.
-    pub pilot: bool,
-    /// Axis of the threshold.
-    pub axis: String,
-    /// Budget of the threshold.
-    pub budget: f64,
-    /// σ*(s) (None = none).
-    pub sigma_star: Option<f64>,
-    /// Right-censored threshold.
-    pub right_censored: bool,
-    /// Bootstrap CI of σ*.
-    pub ci95: Option<[Option<f64>; 2]>,
-    /// P(high bands | changed, s).
-    pub p_high: Option<f64>,
-    /// `tight`, `match`, `loose`, or `undefined`.
-    pub threshold_group: &'static str,
-    /// `mild`, `moderate`, `severe`, or `undefined`.
-    pub severity_group: &'static str,
-    /// `<threshold_group> + <severity_group>`.
-    pub quadrant: String,
-    /// With π*: σ_op ≤ σ*(s) and P(high | s) ≤ π*.
-    pub accepted: Option<bool>,
-    /// Why (not) accepted.
-    pub acceptance_reason: Option<String>,
-}
+/// The two-dimensional ODD entry of one scenario (table 4): one definition with `odd.json`'s
+/// readers, in `fogline_types::odd`.
+pub use fogline_types::odd::OddEntry;
 
 /// A correlation with its p-value.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -532,4 +499,30 @@ pub struct Assurance {
     pub nodes: Vec<EvidenceNode>,
     /// The A1 sensitivity check.
     pub budget_sensitivity: Vec<Sensitivity>,
+}
+
+/// `Some(x)` for a finite `x`: statistics that cannot be computed are `null` in the JSON,
+/// never NaN.
+pub(crate) fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}
+
+impl Envelope {
+    /// The ODD specification a runtime monitor loads (`odd.json`): the headline budget's
+    /// entries with what they were computed under.
+    pub fn odd_spec(&self) -> fogline_types::odd::OddSpec {
+        let p = &self.parameters;
+        let mut spec = fogline_types::odd::OddSpec::new(
+            &self.generated_by,
+            &self.input.sha256,
+            self.odd.first().map(|o| o.axis.clone()),
+            p.headline_budget,
+            p.rule.name(),
+        );
+        spec.high_bands = self.high_severity.bands.clone();
+        spec.pi_star = p.pi_star;
+        spec.sigma_op = p.sigma_op;
+        spec.entries = self.odd.clone();
+        spec
+    }
 }

@@ -4,8 +4,8 @@ use std::collections::BTreeMap;
 
 use fogline_stats::{contingency, correlation, describe, effect, icc, rank};
 
-use crate::analyze::finite;
 use crate::input::PairTable;
+use crate::model::finite;
 use crate::model::{Chi2Out, Corr, IccOut, Joint, MwuOut, Statistics};
 use crate::params::EnvelopeParams;
 

@@ -4,46 +4,16 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use image::codecs::jpeg::JpegEncoder;
-use image::codecs::png::{CompressionType, FilterType, PngEncoder};
-use image::{ExtendedColorType, ImageEncoder};
-
 use crate::ImageFormat;
 
-/// Encodes one RGB8 row-major frame of `width × height` pixels.
+/// Encodes one RGB8 row-major frame of `width × height` pixels ([`fogline_io::encode`]).
 pub(crate) fn encode(
     rgb: &[u8],
     width: u32,
     height: u32,
     format: ImageFormat,
 ) -> Result<Vec<u8>, String> {
-    let expected = width as usize * height as usize * 3;
-    if rgb.len() != expected {
-        return Err(format!(
-            "{} bytes, expected {expected} ({width}x{height} RGB8)",
-            rgb.len()
-        ));
-    }
-    let mut out = Vec::with_capacity(expected / 4 + 1024);
-    let result = match format {
-        ImageFormat::Png => {
-            PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
-                .write_image(rgb, width, height, ExtendedColorType::Rgb8)
-        }
-        ImageFormat::Jpeg { quality } => {
-            if !(1..=100).contains(&quality) {
-                return Err(format!("JPEG quality {quality} is not in 1..=100"));
-            }
-            JpegEncoder::new_with_quality(&mut out, quality).write_image(
-                rgb,
-                width,
-                height,
-                ExtendedColorType::Rgb8,
-            )
-        }
-    };
-    result.map_err(|e| format!("cannot encode as {}: {e}", format.name()))?;
-    Ok(out)
+    fogline_io::encode(rgb, width, height, format)
 }
 
 /// A decoded frame: width, height and RGB8 row-major pixels.

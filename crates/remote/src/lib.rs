@@ -22,28 +22,10 @@ mod serving;
 
 pub use serving::ServerHandle;
 
-/// How a client encodes camera frames for the wire.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub enum ImageFormat {
-    /// PNG: lossless, so the planner sees exactly the pixels fogline produced (the default).
-    #[default]
-    Png,
-    /// JPEG at a quality of 1–100: smaller, lossy (AlpaSim's renderers send JPEG too).
-    Jpeg {
-        /// The JPEG quality, 1–100.
-        quality: u8,
-    },
-}
-
-impl ImageFormat {
-    /// `png` or `jpeg`.
-    pub fn name(self) -> &'static str {
-        match self {
-            ImageFormat::Png => "png",
-            ImageFormat::Jpeg { .. } => "jpeg",
-        }
-    }
-}
+/// How a client encodes camera frames for the wire: PNG (lossless, the default: the planner
+/// sees exactly the pixels fogline produced) or JPEG at a quality of 1–100 (smaller, lossy;
+/// AlpaSim's renderers send JPEG too).
+pub use fogline_io::ImageFormat;
 
 /// One planning request: the planner's input plus what identifies the run to a remote
 /// policy (a scene id and a random seed, which AlpaSim's `start_session` carries).

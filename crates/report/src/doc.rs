@@ -362,42 +362,8 @@ pub struct JointDoc {
     pub counts: Vec<Vec<usize>>,
 }
 
-/// An ODD entry (table 4).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct OddDoc {
-    /// Scenario.
-    pub scenario: String,
-    /// Rank.
-    pub rank: Option<usize>,
-    /// Clips.
-    pub n_clips: usize,
-    /// Changed pairs.
-    pub n_changed: usize,
-    /// Pilot.
-    pub pilot: bool,
-    /// Axis.
-    pub axis: String,
-    /// Budget.
-    pub budget: f64,
-    /// σ*.
-    pub sigma_star: Option<f64>,
-    /// Right-censored.
-    pub right_censored: bool,
-    /// 95 % interval.
-    pub ci95: Option<[Option<f64>; 2]>,
-    /// P(high | changed, s).
-    pub p_high: Option<f64>,
-    /// `tight`, `match`, `loose`, `undefined`.
-    pub threshold_group: String,
-    /// `mild`, `moderate`, `severe`, `undefined`.
-    pub severity_group: String,
-    /// Quadrant.
-    pub quadrant: String,
-    /// Accepted under π*.
-    pub accepted: Option<bool>,
-    /// Why.
-    pub acceptance_reason: Option<String>,
-}
+/// An ODD entry (table 4): the one definition `odd.json` and `envelope.json` share.
+pub type OddDoc = fogline_types::odd::OddEntry;
 
 /// A correlation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -26,13 +26,16 @@ pub struct Written {
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SimError> {
-    let io = |source| SimError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    fogline_io::write_atomic(path, bytes).map_err(|e| {
+        let source = match fogline_io::atomic::WriteError::of(&e) {
+            Some(w) => std::io::Error::new(w.source.kind(), w.source.to_string()),
+            None => e,
+        };
+        SimError::Io {
+            path: path.display().to_string(),
+            source,
+        }
+    })
 }
 
 /// Writes every output file into `dir` (created if needed).

@@ -19,6 +19,7 @@
 pub mod clip;
 pub mod condition;
 pub mod motion;
+pub mod odd;
 pub mod pair;
 pub mod scenario;
 

@@ -21,14 +21,12 @@
 
 use std::collections::BTreeSet;
 use std::fs;
-use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use fogline_perturb::frame::{DepthMap, Frame, ObjectBox};
 use fogline_types::clip::{CameraCalib, CameraId, EgoPose, FRAMES, HISTORY, Trajectory};
-use image::codecs::png::{CompressionType, FilterType, PngEncoder};
-use image::{ColorType, DynamicImage, ExtendedColorType, ImageEncoder as _};
+use image::{ColorType, DynamicImage, ExtendedColorType};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
@@ -478,16 +476,9 @@ fn write_png(
     h: u32,
     color: ExtendedColorType,
 ) -> Result<(), WorldError> {
-    let compression = match color {
-        ExtendedColorType::L16 => CompressionType::Level(1),
-        _ => CompressionType::Fast,
-    };
-    let file = fs::File::create(path).map_err(io_err(path))?;
-    let mut out = BufWriter::with_capacity(1 << 18, file);
-    PngEncoder::new_with_quality(&mut out, compression, FilterType::Paeth)
-        .write_image(data, w, h, color)
+    let png = fogline_io::encode_png(data, w, h, color, fogline_io::PngSpeed::Archive)
         .map_err(|e| WorldError::file(path, format!("cannot encode the PNG: {e}")))?;
-    out.flush().map_err(io_err(path))
+    fs::write(path, png).map_err(io_err(path))
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -411,3 +411,31 @@ fn a_scenario_without_changed_pairs_gets_undefined_entries_not_nan() {
     let md = fogline_envelope::markdown::render(&env);
     assert!(md.contains("| LANE_KEEPING | 0 | 0 | — |"), "{md}");
 }
+
+/// `odd.json` reads back into the one typed definition, equal to what was written, with the
+/// envelope's entries and parameters.
+#[test]
+fn the_odd_specification_round_trips() {
+    let t = synthetic::corpus(&synthetic::SyntheticParams {
+        n_clips: 240,
+        seed: 4,
+    });
+    let p = EnvelopeParams {
+        pi_star: Some(0.2),
+        ..quick_params()
+    };
+    let env = analyze(&t, &p).unwrap();
+    let spec = env.odd_spec();
+    let text = spec.to_json();
+    let back = fogline_types::odd::OddSpec::from_json(&text).unwrap();
+    assert_eq!(back, spec);
+    assert_eq!(back.entries.len(), env.odd.len());
+    assert_eq!(back.pi_star, Some(0.2));
+    assert_eq!(back.budget, p.headline_budget);
+    assert_eq!(back.high_bands, env.high_severity.bands);
+    // The entries are the envelope's odd[] rows, field for field.
+    let odd_rows = serde_json::to_value(&env.odd).unwrap();
+    let file: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(file["entries"], odd_rows);
+    assert_eq!(file["kind"], "fogline.odd");
+}

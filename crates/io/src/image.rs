@@ -1,0 +1,113 @@
+//! Frame encoding: one PNG and JPEG encoder for every crate (the wire formats of the remote
+//! planners, the clip format's frames and depth maps, the perturbed frames the CLI writes,
+//! the images sent to a language model).
+
+use image::codecs::jpeg::JpegEncoder;
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, ImageEncoder};
+
+/// How a frame is encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ImageFormat {
+    /// PNG: lossless, so a reader sees exactly the pixels fogline produced (the default).
+    #[default]
+    Png,
+    /// JPEG at a quality of 1–100: smaller, lossy.
+    Jpeg {
+        /// The JPEG quality, 1–100.
+        quality: u8,
+    },
+}
+
+impl ImageFormat {
+    /// `png` or `jpeg`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "png",
+            ImageFormat::Jpeg { .. } => "jpeg",
+        }
+    }
+}
+
+/// How hard the PNG encoder works.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PngSpeed {
+    /// Fast deflate with adaptive filters: what goes over the wire or to a model.
+    #[default]
+    Fast,
+    /// Paeth filters and light deflate: files written once and read often (the clip format).
+    Archive,
+}
+
+/// Encodes one RGB8 row-major frame of `width × height` pixels.
+pub fn encode(rgb: &[u8], width: u32, height: u32, format: ImageFormat) -> Result<Vec<u8>, String> {
+    let expected = width as usize * height as usize * 3;
+    if rgb.len() != expected {
+        return Err(format!(
+            "{} bytes, expected {expected} ({width}x{height} RGB8)",
+            rgb.len()
+        ));
+    }
+    match format {
+        ImageFormat::Png => encode_png(rgb, width, height, ExtendedColorType::Rgb8, PngSpeed::Fast),
+        ImageFormat::Jpeg { quality } => {
+            if !(1..=100).contains(&quality) {
+                return Err(format!("JPEG quality {quality} is not in 1..=100"));
+            }
+            let mut out = Vec::with_capacity(expected / 8 + 1024);
+            JpegEncoder::new_with_quality(&mut out, quality)
+                .write_image(rgb, width, height, ExtendedColorType::Rgb8)
+                .map_err(|e| format!("cannot encode as jpeg: {e}"))?;
+            Ok(out)
+        }
+    }
+}
+
+/// Encodes a PNG of any colour type the `image` crate writes (RGB8 frames, 16-bit grey
+/// depth maps as big-endian bytes).
+pub fn encode_png(
+    data: &[u8],
+    width: u32,
+    height: u32,
+    color: ExtendedColorType,
+    speed: PngSpeed,
+) -> Result<Vec<u8>, String> {
+    let (compression, filter) = match (speed, color) {
+        (PngSpeed::Fast, _) => (CompressionType::Fast, FilterType::Adaptive),
+        (PngSpeed::Archive, ExtendedColorType::L16) => {
+            (CompressionType::Level(1), FilterType::Paeth)
+        }
+        (PngSpeed::Archive, _) => (CompressionType::Fast, FilterType::Paeth),
+    };
+    let mut out = Vec::with_capacity(data.len() / 4 + 1024);
+    PngEncoder::new_with_quality(&mut out, compression, filter)
+        .write_image(data, width, height, color)
+        .map_err(|e| format!("cannot encode as png: {e}"))?;
+    Ok(out)
+}
+
+pub use image::ExtendedColorType as ColorType;
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn png_round_trips_exactly_and_sizes_are_checked() {
+        let rgb: Vec<u8> = (0..(7 * 5 * 3)).map(|i| (i * 13 % 256) as u8).collect();
+        for speed in [PngSpeed::Fast, PngSpeed::Archive] {
+            let png = encode_png(&rgb, 7, 5, ColorType::Rgb8, speed).unwrap();
+            let back = image::load_from_memory(&png).unwrap().to_rgb8();
+            assert_eq!(back.as_raw(), &rgb);
+        }
+        assert!(
+            encode(&rgb[1..], 7, 5, ImageFormat::Png)
+                .unwrap_err()
+                .contains("expected 105")
+        );
+        assert!(encode(&rgb, 7, 5, ImageFormat::Jpeg { quality: 0 }).is_err());
+        let jpeg = encode(&rgb, 7, 5, ImageFormat::Jpeg { quality: 90 }).unwrap();
+        assert_eq!(&jpeg[..2], &[0xFF, 0xD8]);
+    }
+}

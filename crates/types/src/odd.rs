@@ -1,0 +1,275 @@
+//! `odd.json`: the operational design domain an envelope analysis found, as a runtime
+//! monitor loads it.
+//!
+//! One typed, versioned definition for the file's writer (`fogline envelope`, through
+//! `fogline_envelope::odd_spec`) and its readers (the runtime monitor, the Python package,
+//! your own tools): [`OddSpec::to_json`] writes it and [`OddSpec::from_json`] reads it back,
+//! checking its kind, its schema version and its numbers.
+//!
+//! ```
+//! use fogline_types::odd::{OddEntry, OddSpec};
+//!
+//! let spec = OddSpec::new("fogline 0.1.0", "ab12", Some("gaussian_noise".into()), 0.15, "first-violation");
+//! let text = spec.to_json();
+//! assert_eq!(OddSpec::from_json(&text).unwrap(), spec);
+//! assert!(OddSpec::from_json("{\"kind\": \"something.else\"}").is_err());
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+/// The `kind` of an `odd.json` file.
+pub const KIND: &str = "fogline.odd";
+
+/// The schema version this crate writes and reads.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// The contents of `odd.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OddSpec {
+    /// [`SCHEMA_VERSION`].
+    pub schema_version: u32,
+    /// [`KIND`].
+    pub kind: String,
+    /// The producing tool and version.
+    pub generated_by: String,
+    /// SHA-256 of the pairs table the analysis read.
+    pub input_sha256: String,
+    /// The severity axis of the thresholds (`gaussian_noise`, …).
+    pub axis: Option<String>,
+    /// The relative ADE budget of the thresholds.
+    pub budget: f64,
+    /// The threshold rule (`first-violation` or `max-passing`).
+    pub rule: String,
+    /// The severity bands that count as high.
+    pub high_bands: Vec<String>,
+    /// The residual-risk budget π*, when acceptance was asked for.
+    pub pi_star: Option<f64>,
+    /// The operating level σ_op, when given.
+    pub sigma_op: Option<f64>,
+    /// One entry per scenario (and the aggregates).
+    pub entries: Vec<OddEntry>,
+}
+
+/// The two-dimensional ODD entry of one scenario (table 4 of the envelope paper): where it
+/// starts to fail (σ*) and how badly once it does (P(high | changed)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OddEntry {
+    /// Scenario.
+    pub scenario: String,
+    /// Rank in the taxonomy.
+    pub rank: Option<usize>,
+    /// Clips.
+    pub n_clips: usize,
+    /// Changed pairs.
+    pub n_changed: usize,
+    /// Fewer clips than the analysis's `min_clips`.
+    pub pilot: bool,
+    /// Axis of the threshold.
+    pub axis: String,
+    /// Budget of the threshold.
+    pub budget: f64,
+    /// σ*(s) (None = none).
+    pub sigma_star: Option<f64>,
+    /// Right-censored threshold.
+    pub right_censored: bool,
+    /// Bootstrap CI of σ*.
+    pub ci95: Option<[Option<f64>; 2]>,
+    /// P(high bands | changed, s).
+    pub p_high: Option<f64>,
+    /// `tight`, `match`, `loose`, or `undefined`.
+    pub threshold_group: String,
+    /// `mild`, `moderate`, `severe`, or `undefined`.
+    pub severity_group: String,
+    /// `<threshold_group> + <severity_group>`.
+    pub quadrant: String,
+    /// With π*: σ_op ≤ σ*(s) and P(high | s) ≤ π*.
+    pub accepted: Option<bool>,
+    /// Why (not) accepted.
+    pub acceptance_reason: Option<String>,
+}
+
+/// Why an `odd.json` could not be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OddError(pub String);
+
+impl std::fmt::Display for OddError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for OddError {}
+
+impl OddSpec {
+    /// An empty specification (no entries) of the current schema.
+    pub fn new(
+        generated_by: &str,
+        input_sha256: &str,
+        axis: Option<String>,
+        budget: f64,
+        rule: &str,
+    ) -> Self {
+        Self {
+            schema_version: SCHEMA_VERSION,
+            kind: KIND.into(),
+            generated_by: generated_by.into(),
+            input_sha256: input_sha256.into(),
+            axis,
+            budget,
+            rule: rule.into(),
+            high_bands: Vec::new(),
+            pi_star: None,
+            sigma_op: None,
+            entries: Vec::new(),
+        }
+    }
+
+    /// The file's text (pretty JSON, as `fogline envelope` writes it).
+    pub fn to_json(&self) -> String {
+        // Serialising plain data to a string cannot fail.
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Reads an `odd.json` text: checks `kind` and `schema_version` first (so a wrong file
+    /// says what it is), then every field (named in the error), then that the numbers are
+    /// in range (budget > 0, probabilities in [0, 1], thresholds ≥ 0).
+    pub fn from_json(text: &str) -> Result<Self, OddError> {
+        #[derive(Deserialize)]
+        struct Header {
+            kind: Option<String>,
+            schema_version: Option<u32>,
+        }
+        let head: Header = serde_json::from_str(text)
+            .map_err(|e| OddError(format!("not an odd.json file: {e}")))?;
+        match head.kind.as_deref() {
+            Some(KIND) => {}
+            Some(other) => {
+                return Err(OddError(format!(
+                    "kind is {other:?}, expected {KIND:?}: not an odd.json file"
+                )));
+            }
+            None => return Err(OddError(format!("no kind field: not a {KIND} file"))),
+        }
+        match head.schema_version {
+            Some(SCHEMA_VERSION) => {}
+            Some(v) => {
+                return Err(OddError(format!(
+                    "schema_version {v} is not supported (this build reads {SCHEMA_VERSION}): \
+                     regenerate the file with this build's fogline envelope"
+                )));
+            }
+            None => return Err(OddError("no schema_version field".into())),
+        }
+        let spec: OddSpec =
+            serde_json::from_str(text).map_err(|e| OddError(format!("odd.json: {e}")))?;
+        spec.check()?;
+        Ok(spec)
+    }
+
+    /// Reads `odd.json` from `path` ([`OddSpec::from_json`]); errors name the file.
+    pub fn read(path: &std::path::Path) -> Result<Self, OddError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| OddError(format!("cannot read {}: {e}", path.display())))?;
+        Self::from_json(&text).map_err(|e| OddError(format!("{}: {e}", path.display())))
+    }
+
+    /// The entry of `scenario`, if any.
+    pub fn entry(&self, scenario: &str) -> Option<&OddEntry> {
+        self.entries.iter().find(|e| e.scenario == scenario)
+    }
+
+    fn check(&self) -> Result<(), OddError> {
+        let prob = |v: Option<f64>| v.is_none_or(|p| (0.0..=1.0).contains(&p));
+        if !(self.budget.is_finite() && self.budget > 0.0) {
+            return Err(OddError(format!(
+                "budget {} must be a positive number",
+                self.budget
+            )));
+        }
+        if !prob(self.pi_star) {
+            return Err(OddError("pi_star must be in [0, 1]".into()));
+        }
+        if self.sigma_op.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
+            return Err(OddError("sigma_op must be a non-negative number".into()));
+        }
+        for (i, e) in self.entries.iter().enumerate() {
+            let at = |what: &str| OddError(format!("entries[{i}] ({}): {what}", e.scenario));
+            if e.sigma_star.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
+                return Err(at("sigma_star must be a non-negative number"));
+            }
+            if !prob(e.p_high) {
+                return Err(at("p_high must be in [0, 1]"));
+            }
+            if !(e.budget.is_finite() && e.budget > 0.0) {
+                return Err(at("budget must be a positive number"));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn entry(scenario: &str, sigma: Option<f64>, p_high: Option<f64>) -> OddEntry {
+        OddEntry {
+            scenario: scenario.into(),
+            rank: Some(1),
+            n_clips: 40,
+            n_changed: 9,
+            pilot: false,
+            axis: "gaussian_noise".into(),
+            budget: 0.15,
+            sigma_star: sigma,
+            right_censored: false,
+            ci95: Some([Some(10.0), None]),
+            p_high,
+            threshold_group: "tight".into(),
+            severity_group: "severe".into(),
+            quadrant: "tight + severe".into(),
+            accepted: None,
+            acceptance_reason: None,
+        }
+    }
+
+    #[test]
+    fn round_trips_and_rejects_what_is_not_an_odd_file() {
+        let mut spec = OddSpec::new(
+            "fogline 0.1.0",
+            "ab",
+            Some("gaussian_noise".into()),
+            0.15,
+            "first-violation",
+        );
+        spec.high_bands = vec!["B2".into(), "B3".into()];
+        spec.entries = vec![
+            entry("LANE_KEEPING", Some(30.0), Some(0.2)),
+            entry("TURN_LEFT", None, None),
+        ];
+        let back = OddSpec::from_json(&spec.to_json()).unwrap();
+        assert_eq!(back, spec);
+        assert_eq!(back.entry("TURN_LEFT").unwrap().sigma_star, None);
+
+        let bad = |text: &str| OddSpec::from_json(text).unwrap_err().to_string();
+        assert!(bad("[1, 2").contains("not an odd.json file"));
+        assert!(bad(r#"{"kind": "fogline.envelope"}"#).contains("expected \"fogline.odd\""));
+        assert!(
+            bad(r#"{"kind": "fogline.odd", "schema_version": 9}"#)
+                .contains("schema_version 9 is not supported")
+        );
+        let text = spec.to_json().replace(
+            "\"budget\": 0.15,\n  \"rule\"",
+            "\"budget\": -1.0,\n  \"rule\"",
+        );
+        assert!(bad(&text).contains("budget -1 must be"), "{}", bad(&text));
+        let mut wrong = spec.clone();
+        wrong.entries[0].p_high = Some(1.5);
+        assert!(bad(&wrong.to_json()).contains("entries[0] (LANE_KEEPING): p_high"));
+        let text = spec
+            .to_json()
+            .replace("\"n_clips\": 40", "\"n_clips\": \"many\"");
+        assert!(bad(&text).contains("invalid type"), "{}", bad(&text));
+    }
+}
