@@ -31,6 +31,35 @@ use fogline_types::clip::{Decision, PlannerInput, PlannerOutput};
 
 pub use perceive::Perception;
 
+/// The reference planner behind the shared [`Planner`](fogline_types::planner::Planner)
+/// interface: in-process, no encoding, no network (what campaigns call `builtin`).
+impl fogline_types::planner::Planner for ReferencePlanner {
+    fn describe(&self) -> String {
+        "builtin reference planner".into()
+    }
+
+    /// The reference planner perceives with the front-wide and front-tele cameras only.
+    fn cameras(&self) -> Option<Vec<fogline_types::clip::CameraId>> {
+        Some(vec![
+            fogline_types::clip::CameraId::FrontWide,
+            fogline_types::clip::CameraId::FrontTele,
+        ])
+    }
+
+    fn plan(
+        &self,
+        request: &fogline_types::planner::PlanRequest<'_>,
+    ) -> Result<PlannerOutput, fogline_types::planner::PlanFailure> {
+        use fogline_types::planner::{FailureKind, PlanFailure};
+        let out = ReferencePlanner::plan(self, &request.input)
+            .map_err(|e| PlanFailure::new(FailureKind::Input, e.to_string()))?;
+        out.trajectory
+            .validate()
+            .map_err(|e| PlanFailure::new(FailureKind::InvalidAnswer, e))?;
+        Ok(out)
+    }
+}
+
 /// Why the planner could not run on an input.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]

@@ -21,6 +21,7 @@ pub mod condition;
 pub mod motion;
 pub mod odd;
 pub mod pair;
+pub mod planner;
 pub mod scenario;
 
 pub use condition::{Condition, Family};

@@ -341,7 +341,7 @@ fn the_builtin_planner_answers_the_same_from_only_the_cameras_it_uses() {
                     seed: 0,
                     input,
                 };
-                planner.plan(&req).unwrap()
+                Planner::plan(&planner, &req).unwrap()
             };
             assert_eq!(answer(&full), answer(&part), "clip {i}, {p}");
         }

@@ -325,7 +325,7 @@ fn fogline_serve_answers_as_the_in_process_planner_does() {
                 seed: 3,
                 input,
             };
-            let expected = local.plan(&request).unwrap();
+            let expected = Planner::plan(&local, &request).unwrap();
             let got = client.plan(&request).unwrap();
             assert_eq!(got.decision, expected.decision, "{protocol} {}", clip.id);
             assert_eq!(
