@@ -1,13 +1,20 @@
-//! Benchmarks of fogline (see `benches/envelope.rs` and this crate's README).
+//! Benchmarks of fogline: the engines behind `fogline bench` ([`perturb`], [`campaign`], [`world`]) and `fogline rco bench` ([`rco`]) and
+//! the envelope pipeline against its Python peer (`benches/envelope.rs`, this crate's README).
 //!
-//! This library holds the small helpers the benchmarks share: a temporary directory that
+//! Each engine takes its options and writes its report to a writer (the CLI passes stdout).
+//! The crate also holds the small helpers the benchmarks share: a temporary directory that
 //! removes itself, the process's peak resident memory from `/proc/self/status`, and robust
-//! summaries of repeated timings. It is not published and nothing else depends on it.
+//! summaries of repeated timings.
 //!
 //! ```
 //! let mut ms = vec![3.0, 1.0, 2.0];
 //! assert_eq!(fogline_bench::median(&mut ms), 2.0);
 //! ```
+
+pub mod campaign;
+pub mod perturb;
+pub mod rco;
+pub mod world;
 
 use std::path::{Path, PathBuf};
 

@@ -51,6 +51,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
             "fogline-report",
             &["fogline-types", "fogline-envelope", "fogline-sim"][..],
         ),
+        ("fogline-api", &["*"][..]),
         ("fogline-cli", &["*"][..]),
         ("fogline-python", &["*"][..]),
         ("fogline-bench", &["*"][..]),

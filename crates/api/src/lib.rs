@@ -1,0 +1,13 @@
+//! fogline's facade: the jobs its two front-ends run — the `fogline` CLI and the Python
+//! package — as one library API, so both only parse, dispatch and format.
+//!
+//! - [`perturb_dir`]: perturb a directory of frames (`fogline perturb`);
+//! - [`planner_eval`]: the reference planner on generated clips, clean and perturbed
+//!   (`fogline planner eval`).
+//!
+//! The benchmark engines are in `fogline-bench`; the analyses, the world, the planner, the
+//! campaign runner, the closed loop and the report in their own crates, which this one sits
+//! on.
+
+pub mod perturb_dir;
+pub mod planner_eval;
