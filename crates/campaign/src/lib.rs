@@ -77,3 +77,42 @@ pub fn run_options(config: &CampaignConfig, shard: Shard) -> RunOptions {
         per_clip: config.planner.kind == "builtin",
     }
 }
+
+/// Runs (or, with `resume` and an existing store, resumes) the campaign of `config` into the
+/// store at `store_path` for `shard`, with the planner the configuration names and a progress
+/// bar on stderr; `retry_failed` first deletes the failed runs so they run again. What
+/// `fogline campaign run` and `fogline demo` do.
+pub fn run_into_store(
+    config: CampaignConfig,
+    store_path: &std::path::Path,
+    shard: Shard,
+    resume: bool,
+    retry_failed: bool,
+) -> Result<(Campaign, RunSummary), CampaignError> {
+    let planner = planner_for(&config)?;
+    let opts = run_options(&config, shard);
+    let campaign = Campaign::new(config)?;
+    let meta = campaign.store_meta(shard);
+    let mut store = if resume && store_path.exists() {
+        Store::resume(store_path, &meta)?
+    } else {
+        Store::create(store_path, &meta)?
+    };
+    if retry_failed {
+        let n = store.delete_failed()?;
+        log::info!("{n} failed runs will run again");
+    }
+    log::info!(
+        "campaign {}: {} clips × {} conditions × {} seeds, shard {shard}, {} → {}",
+        &campaign.hash[..12],
+        campaign.clips.len(),
+        campaign.conditions.len(),
+        campaign.seeds().len(),
+        planner.describe(),
+        store_path.display()
+    );
+    let progress = fogline_io::Progress::new(0, "runs");
+    let summary = run(&campaign, &mut store, planner.as_ref(), &opts, &progress)?;
+    progress.finish();
+    Ok((campaign, summary))
+}

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use fogline_campaign::export::{ExportSummary, Formats};
-use fogline_campaign::{Campaign, CampaignConfig, RunSummary, Shard, Store};
+use fogline_campaign::{CampaignConfig, RunSummary, Shard, Store};
 
 /// Arguments of `fogline campaign`.
 #[derive(Args)]
@@ -126,42 +126,6 @@ fn default_store(config: &Path, shard: Shard) -> PathBuf {
     }
 }
 
-/// Runs (or resumes) a campaign into `store_path`; returns the summary.
-pub(crate) fn run_campaign(
-    config: CampaignConfig,
-    store_path: &Path,
-    shard: Shard,
-    resume: bool,
-    retry_failed: bool,
-) -> Result<(Campaign, RunSummary)> {
-    let planner = fogline_campaign::planner_for(&config)?;
-    let opts = fogline_campaign::run_options(&config, shard);
-    let campaign = Campaign::new(config)?;
-    let meta = campaign.store_meta(shard);
-    let mut store = if resume && store_path.exists() {
-        Store::resume(store_path, &meta)?
-    } else {
-        Store::create(store_path, &meta)?
-    };
-    if retry_failed {
-        let n = store.delete_failed()?;
-        log::info!("{n} failed runs will run again");
-    }
-    log::info!(
-        "campaign {}: {} clips × {} conditions × {} seeds, shard {shard}, {} → {}",
-        &campaign.hash[..12],
-        campaign.clips.len(),
-        campaign.conditions.len(),
-        campaign.seeds().len(),
-        planner.describe(),
-        store_path.display()
-    );
-    let progress = fogline_io::Progress::new(0, "runs");
-    let summary = fogline_campaign::run(&campaign, &mut store, planner.as_ref(), &opts, &progress)?;
-    progress.finish();
-    Ok((campaign, summary))
-}
-
 fn run(a: RunArgs) -> Result<ExitCode> {
     let mut config = CampaignConfig::from_file(&a.config)?;
     if let Some(c) = a.concurrency {
@@ -176,7 +140,8 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         None => Shard::ALL,
     };
     let store_path = a.store.unwrap_or_else(|| default_store(&a.config, shard));
-    let (_, summary) = run_campaign(config, &store_path, shard, a.resume, a.retry_failed)?;
+    let (_, summary) =
+        fogline_campaign::run_into_store(config, &store_path, shard, a.resume, a.retry_failed)?;
     let mut out = std::io::stdout().lock();
     print_run(&mut out, &summary, &store_path)?;
     if let Some(dir) = &a.export {

@@ -328,7 +328,7 @@ fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
     let t1 = std::time::Instant::now();
     let env = fogline_envelope::analyze(&table, &p)?;
     log::info!("analysed in {:.2} s", t1.elapsed().as_secs_f64());
-    let written = write_outputs(&env, &table, &a.out)?;
+    let written = fogline_api::envelope::write_outputs(&env, &table, &a.out, None)?;
     print_summary(&env, &written, a.json)?;
     Ok(gate(&env))
 }
@@ -354,36 +354,7 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(fogline_io::write_atomic(path, bytes)?)
 }
 
-struct Written {
-    json: PathBuf,
-    markdown: PathBuf,
-    odd: PathBuf,
-    report: PathBuf,
-}
-
-fn write_outputs(
-    env: &Envelope,
-    table: &fogline_envelope::PairTable,
-    dir: &Path,
-) -> Result<Written> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let json = serde_json::to_vec_pretty(env).context("cannot serialise the envelope")?;
-    let md = fogline_envelope::markdown::render(env);
-    let odd = env.odd_spec().to_json();
-    let w = Written {
-        json: dir.join("envelope.json"),
-        markdown: dir.join("envelope.md"),
-        odd: dir.join("odd.json"),
-        report: dir.join("report.html"),
-    };
-    write_atomic(&w.json, &json)?;
-    write_atomic(&w.markdown, md.as_bytes())?;
-    write_atomic(&w.odd, odd.as_bytes())?;
-    report_cmd::write_report(env, Some(table), &w.report)?;
-    Ok(w)
-}
-
-fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {
+fn print_summary(env: &Envelope, w: &fogline_api::envelope::Written, json: bool) -> Result<()> {
     let mut out = std::io::stdout().lock();
     if json {
         let v = serde_json::json!({
@@ -454,85 +425,23 @@ fn print_summary(env: &Envelope, w: &Written, json: bool) -> Result<()> {
 }
 
 fn demo(a: DemoArgs) -> Result<ExitCode> {
-    if a.clips == 0 {
-        bail!("--clips must be at least 1");
-    }
-    let t = std::time::Instant::now();
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
-    // The campaign: the paper's eight conditions + clean on a synthetic corpus, the
-    // reference planner in-process.
-    let config_text = format!(
-        "# Written by `fogline demo`; rerun with `fogline campaign run`.\n\
-         [clips]\nsource = \"world\"\ncount = {}\nseed = {}\nmix = \"paper\"\n\
-         width = 576\nheight = 320\n\n[planner]\nkind = \"builtin\"\n",
-        a.clips, a.seed
-    );
-    let config = fogline_campaign::CampaignConfig::from_toml(&config_text)?;
-    let config_path = a.out.join("campaign.toml");
-    write_atomic(&config_path, config_text.as_bytes())?;
-    // The demo owns its store: start it afresh.
-    let store = a.out.join("campaign.sqlite");
-    for suffix in ["", "-wal", "-shm"] {
-        let p = PathBuf::from(format!("{}{suffix}", store.display()));
-        if p.exists() {
-            std::fs::remove_file(&p).with_context(|| format!("cannot remove {}", p.display()))?;
-        }
-    }
-    log::info!(
-        "demo: {} synthetic clips × 9 conditions with the reference planner",
-        a.clips
-    );
-    let (_, summary) =
-        campaign_cmd::run_campaign(config, &store, fogline_campaign::Shard::ALL, false, false)?;
-    let runs = fogline_campaign::Store::open(&store)?.runs()?;
-    let exported = fogline_campaign::export::export(
-        &runs,
-        &a.out,
-        fogline_campaign::export::Formats {
-            csv: true,
-            parquet: true,
-        },
-        false,
-    )?;
-    {
-        let mut out = std::io::stdout().lock();
-        campaign_cmd::print_run(&mut out, &summary, &store)?;
-        campaign_cmd::print_export(&mut out, &exported)?;
-    }
-    let pairs = a.out.join("pairs.csv");
-    let table = fogline_envelope::read_pairs(&pairs, &ReadOptions::default())?;
-    let t1 = std::time::Instant::now();
-    let env = fogline_envelope::analyze(
-        &table,
-        &EnvelopeParams {
-            seed: a.seed,
-            ..EnvelopeParams::default()
-        },
-    )?;
-    log::info!(
-        "analysed {} pairs in {:.2} s",
-        table.len(),
-        t1.elapsed().as_secs_f64()
-    );
-    let w = write_outputs(&env, &table, &a.out)?;
-    print_summary(&env, &w, false)?;
-    if !a.no_closed_loop {
-        // The closed loop: the quick suite, no deficit and each deficit with and without
-        // the override; its table joins the report.
-        let dir = a.out.join("closed-loop");
-        let t2 = std::time::Instant::now();
-        log::info!(
-            "demo: the quick closed loop (2 towns x 2 routes; no deficit, each deficit with and without RCO)"
-        );
-        let results = sim_cmd::quick_closed_loop(a.seed, &dir)?;
-        report_cmd::write_report_with(&env, Some(&table), Some(&dir), &w.report)?;
-        let mut out = std::io::stdout().lock();
+    let d = fogline_api::demo::run(&fogline_api::demo::DemoJob {
+        clips: a.clips,
+        seed: a.seed,
+        out: a.out.clone(),
+        closed_loop: !a.no_closed_loop,
+    })?;
+    let mut out = std::io::stdout().lock();
+    campaign_cmd::print_run(&mut out, &d.run, &d.store)?;
+    campaign_cmd::print_export(&mut out, &d.exported)?;
+    drop(out);
+    print_summary(&d.envelope, &d.written, false)?;
+    let mut out = std::io::stdout().lock();
+    if let Some((results, dir, secs)) = &d.closed_loop {
         writeln!(
             out,
-            "closed loop ({} runs in {:.1} s): driving score, mean of the routes",
-            results.records.len(),
-            t2.elapsed().as_secs_f64()
+            "closed loop ({} runs in {secs:.1} s): driving score, mean of the routes",
+            results.records.len()
         )?;
         for c in &results.summary.configs {
             let m = &c.unlimited;
@@ -548,9 +457,9 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
         writeln!(out, "{}", dir.display())?;
     }
     writeln!(
-        std::io::stdout().lock(),
+        out,
         "demo finished in {:.1} s; everything is in {}",
-        t.elapsed().as_secs_f64(),
+        d.seconds,
         a.out.display()
     )?;
     Ok(ExitCode::SUCCESS)

@@ -120,28 +120,6 @@ struct RunArgs {
     json: bool,
 }
 
-/// The quick closed loop `fogline demo` runs: the quick suite (2 towns × 2 routes), every
-/// main configuration (no deficit; each deficit with and without RCO, rules backend),
-/// seed `seed`, all cores; the outputs written to `out`. Returns the results.
-pub fn quick_closed_loop(
-    seed: u64,
-    out: &std::path::Path,
-) -> Result<fogline_sim::experiment::Results> {
-    let params = ExperimentParams {
-        suite: SuiteParams::quick(),
-        seeds: vec![seed],
-        configs: configs(&[ConfigSet::Main], &DeficitKind::ALL, &BackendSetup::Rules),
-        run: RunParams::default(),
-        system_time_limit_s: 1800.0,
-        llm_latency_ms: Some(1000.0),
-        routes: None,
-    };
-    params.validate()?;
-    let results = run_experiment(&params, 0, &|_, _| {})?;
-    write_all(&results, out).with_context(|| format!("writing results to {}", out.display()))?;
-    Ok(results)
-}
-
 /// Runs `fogline sim`.
 pub fn sim(a: SimArgs) -> Result<ExitCode> {
     match a.what {

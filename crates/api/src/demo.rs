@@ -1,0 +1,156 @@
+//! The whole pipeline offline on built-in data (what `fogline demo` runs): a synthetic corpus
+//! in the paper's scenario mix, the campaign (clean + the paper's eight conditions) with the
+//! reference planner into a fresh SQLite store, the runs and pairs tables, the envelope
+//! analysis with its files and report, and the quick closed loop.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use fogline_campaign::export::{ExportSummary, Formats};
+use fogline_campaign::{CampaignConfig, RunSummary, Shard};
+use fogline_envelope::{Envelope, EnvelopeParams, PairTable, ReadOptions};
+use fogline_io::write_atomic;
+use fogline_sim::config::{BackendSetup, ConfigSet, configs};
+use fogline_sim::experiment::{ExperimentParams, Results, run_experiment};
+use fogline_sim::output::write_all;
+use fogline_sim::run::RunParams;
+use fogline_sim::sense::DeficitKind;
+use fogline_sim::suite::SuiteParams;
+
+use crate::envelope::{Written, write_outputs};
+
+/// What `fogline demo` takes.
+#[derive(Debug, Clone)]
+pub struct DemoJob {
+    /// Clips of the synthetic corpus (the paper's has 1,996).
+    pub clips: usize,
+    /// Seed of the corpus, the analysis and the closed loop.
+    pub seed: u64,
+    /// Output directory (created if needed; its store is started afresh).
+    pub out: PathBuf,
+    /// Also run the quick closed loop.
+    pub closed_loop: bool,
+}
+
+/// What a demo produced, for the front-end to report.
+#[derive(Debug)]
+pub struct DemoOutcome {
+    /// The campaign's store.
+    pub store: PathBuf,
+    /// The campaign run.
+    pub run: RunSummary,
+    /// The exported tables.
+    pub exported: ExportSummary,
+    /// The pairs table analysed.
+    pub table: PairTable,
+    /// The analysis.
+    pub envelope: Envelope,
+    /// Its files.
+    pub written: Written,
+    /// The closed loop's results, directory and seconds, when it ran.
+    pub closed_loop: Option<(Results, PathBuf, f64)>,
+    /// Wall time of the whole demo, s.
+    pub seconds: f64,
+}
+
+/// Runs the demo (progress on stderr through the log and the progress bars).
+pub fn run(job: &DemoJob) -> Result<DemoOutcome> {
+    if job.clips == 0 {
+        bail!("--clips must be at least 1");
+    }
+    let t = Instant::now();
+    std::fs::create_dir_all(&job.out)
+        .with_context(|| format!("cannot create {}", job.out.display()))?;
+    // The campaign: the paper's eight conditions + clean on a synthetic corpus, the
+    // reference planner in-process.
+    let config_text = format!(
+        "# Written by `fogline demo`; rerun with `fogline campaign run`.\n\
+         [clips]\nsource = \"world\"\ncount = {}\nseed = {}\nmix = \"paper\"\n\
+         width = 576\nheight = 320\n\n[planner]\nkind = \"builtin\"\n",
+        job.clips, job.seed
+    );
+    let config = CampaignConfig::from_toml(&config_text)?;
+    write_atomic(&job.out.join("campaign.toml"), config_text.as_bytes())?;
+    // The demo owns its store: start it afresh.
+    let store = job.out.join("campaign.sqlite");
+    for suffix in ["", "-wal", "-shm"] {
+        let p = PathBuf::from(format!("{}{suffix}", store.display()));
+        if p.exists() {
+            std::fs::remove_file(&p).with_context(|| format!("cannot remove {}", p.display()))?;
+        }
+    }
+    log::info!(
+        "demo: {} synthetic clips × 9 conditions with the reference planner",
+        job.clips
+    );
+    let (_, run) = fogline_campaign::run_into_store(config, &store, Shard::ALL, false, false)?;
+    let runs = fogline_campaign::Store::open(&store)?.runs()?;
+    let exported = fogline_campaign::export::export(
+        &runs,
+        &job.out,
+        Formats {
+            csv: true,
+            parquet: true,
+        },
+        false,
+    )?;
+    let table = fogline_envelope::read_pairs(&job.out.join("pairs.csv"), &ReadOptions::default())?;
+    let t1 = Instant::now();
+    let envelope = fogline_envelope::analyze(
+        &table,
+        &EnvelopeParams {
+            seed: job.seed,
+            ..EnvelopeParams::default()
+        },
+    )?;
+    log::info!(
+        "analysed {} pairs in {:.2} s",
+        table.len(),
+        t1.elapsed().as_secs_f64()
+    );
+    let written = write_outputs(&envelope, &table, &job.out, None)?;
+    let closed_loop = if job.closed_loop {
+        // The closed loop: the quick suite, no deficit and each deficit with and without
+        // the override; its table joins the report.
+        let dir = job.out.join("closed-loop");
+        let t2 = Instant::now();
+        log::info!(
+            "demo: the quick closed loop (2 towns x 2 routes; no deficit, each deficit with and without RCO)"
+        );
+        let results = quick_closed_loop(job.seed, &dir)?;
+        crate::envelope::write_report(&envelope, Some(&table), Some(&dir), &written.report)?;
+        Some((results, dir, t2.elapsed().as_secs_f64()))
+    } else {
+        None
+    };
+    Ok(DemoOutcome {
+        store,
+        run,
+        exported,
+        table,
+        envelope,
+        written,
+        closed_loop,
+        seconds: t.elapsed().as_secs_f64(),
+    })
+}
+
+/// The quick closed loop: the quick suite (2 towns × 2 routes), every main configuration (no
+/// deficit; each deficit with and without RCO, rules backend), seed `seed`, all cores; the
+/// outputs written to `out`.
+pub fn quick_closed_loop(seed: u64, out: &Path) -> Result<Results> {
+    let params = ExperimentParams {
+        suite: SuiteParams::quick(),
+        seeds: vec![seed],
+        configs: configs(&[ConfigSet::Main], &DeficitKind::ALL, &BackendSetup::Rules),
+        run: RunParams::default(),
+        system_time_limit_s: 1800.0,
+        llm_latency_ms: Some(1000.0),
+        routes: None,
+    };
+    params.validate()?;
+    let results = run_experiment(&params, 0, &|_, _| {})?;
+    write_all(&results, out).with_context(|| format!("writing results to {}", out.display()))?;
+    Ok(results)
+}

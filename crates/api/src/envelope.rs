@@ -1,0 +1,179 @@
+//! The envelope analysis's files (what `fogline envelope` and `fogline demo` write) and the
+//! HTML report of an envelope directory (what `fogline report` writes).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use fogline_envelope::{Envelope, PairTable, ReadOptions};
+use fogline_io::write_atomic;
+use fogline_report::{ClosedLoop, ReportInput, ReportParams};
+
+/// The files an analysis writes into its directory.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Written {
+    /// `envelope.json`: every figure.
+    pub json: PathBuf,
+    /// `envelope.md`: the tables for people.
+    pub markdown: PathBuf,
+    /// `odd.json`: what a runtime monitor loads.
+    pub odd: PathBuf,
+    /// `report.html`: the self-contained report.
+    pub report: PathBuf,
+}
+
+/// Writes `envelope.json`, `envelope.md`, `odd.json` and `report.html` into `dir` (created if
+/// needed), each atomically; the report includes the closed loop of `sim_dir` when given.
+pub fn write_outputs(
+    env: &Envelope,
+    table: &PairTable,
+    dir: &Path,
+    sim_dir: Option<&Path>,
+) -> Result<Written> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let json = serde_json::to_vec_pretty(env).context("cannot serialise the envelope")?;
+    let md = fogline_envelope::markdown::render(env);
+    let odd = env.odd_spec().to_json();
+    let w = Written {
+        json: dir.join("envelope.json"),
+        markdown: dir.join("envelope.md"),
+        odd: dir.join("odd.json"),
+        report: dir.join("report.html"),
+    };
+    write_atomic(&w.json, &json)?;
+    write_atomic(&w.markdown, md.as_bytes())?;
+    write_atomic(&w.odd, odd.as_bytes())?;
+    write_report(env, Some(table), sim_dir, &w.report)?;
+    Ok(w)
+}
+
+/// Writes the HTML report of `envelope` (with the L2 histogram of `pairs` and the closed
+/// loop of `sim_dir`'s `closed_loop.json`, when given) to `out`.
+pub fn write_report(
+    envelope: &Envelope,
+    pairs: Option<&PairTable>,
+    sim_dir: Option<&Path>,
+    out: &Path,
+) -> Result<()> {
+    let mut input = ReportInput::from_envelope(envelope)?;
+    if let Some(t) = pairs {
+        input = input.with_pairs(t)?;
+    }
+    if let Some(dir) = sim_dir {
+        input = input.with_closed_loop(read_closed_loop(dir)?)?;
+    }
+    write_input(&input, &ReportParams::default(), out)
+}
+
+/// What `fogline report` takes.
+#[derive(Debug, Clone, Default)]
+pub struct ReportJob {
+    /// The directory holding `envelope.json`.
+    pub envelope_dir: PathBuf,
+    /// A closed-loop output directory (holding `closed_loop.json`) to add.
+    pub sim: Option<PathBuf>,
+    /// Where to write (default `<envelope_dir>/report.html`).
+    pub out: Option<PathBuf>,
+    /// The pairs table for the L2 histogram (default: the one `envelope.json` names, or its
+    /// namesake in `envelope_dir`).
+    pub pairs: Option<PathBuf>,
+    /// Draw no histogram.
+    pub no_pairs: bool,
+    /// The page title.
+    pub title: Option<String>,
+}
+
+/// Writes the report of an envelope directory; returns the file written.
+pub fn report_dir(job: &ReportJob) -> Result<PathBuf> {
+    let json_path = job.envelope_dir.join("envelope.json");
+    let text = std::fs::read_to_string(&json_path)
+        .with_context(|| format!("cannot read {}", json_path.display()))?;
+    let mut input = ReportInput::from_envelope_json(&text, &json_path.display().to_string())?;
+    if !job.no_pairs {
+        input = attach_pairs(input, job)?;
+    }
+    if let Some(dir) = &job.sim {
+        input = input.with_closed_loop(read_closed_loop(dir)?)?;
+    }
+    let params = ReportParams {
+        title: job.title.clone(),
+        ..ReportParams::default()
+    };
+    let out = job
+        .out
+        .clone()
+        .unwrap_or_else(|| job.envelope_dir.join("report.html"));
+    write_input(&input, &params, &out)?;
+    Ok(out)
+}
+
+fn read_closed_loop(dir: &Path) -> Result<ClosedLoop> {
+    let path = dir.join("closed_loop.json");
+    let text = std::fs::read_to_string(&path).with_context(|| {
+        format!(
+            "cannot read {} (the closed-loop evaluation writes it)",
+            path.display()
+        )
+    })?;
+    Ok(ClosedLoop::from_json(&text, &path.display().to_string())?)
+}
+
+fn write_input(input: &ReportInput, params: &ReportParams, out: &Path) -> Result<()> {
+    let report = fogline_report::render(input, params)?;
+    for f in report.figures.iter().filter(|f| !f.drawn) {
+        log::info!(
+            "report: {} ({}) not drawn; the page says why",
+            f.id,
+            f.title
+        );
+    }
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "cannot write {}: {} is not a directory",
+            out.display(),
+            dir.display()
+        );
+    }
+    Ok(write_atomic(out, report.html.as_bytes())?)
+}
+
+/// The pairs table behind the L2 histogram: the one given, else the one `envelope.json`
+/// names, else its namesake next to it; without one the figure shows the mixture alone.
+fn attach_pairs(input: ReportInput, job: &ReportJob) -> Result<ReportInput> {
+    let opts = ReadOptions {
+        allow_incomplete: input.envelope.corpus.n_incomplete_clips > 0,
+        ..ReadOptions::default()
+    };
+    if let Some(p) = &job.pairs {
+        let table = fogline_envelope::read_pairs(p, &opts)?;
+        return Ok(input.with_pairs(&table)?);
+    }
+    let recorded = PathBuf::from(&input.envelope.input.path);
+    let mut candidates = vec![recorded.clone()];
+    if let Some(name) = recorded.file_name() {
+        candidates.push(job.envelope_dir.join(name));
+    }
+    for c in candidates {
+        if !c.is_file() {
+            continue;
+        }
+        match fogline_envelope::read_pairs(&c, &opts) {
+            Ok(table) => match input.clone().with_pairs(&table) {
+                Ok(with) => {
+                    log::info!("report: L2 histogram from {}", c.display());
+                    return Ok(with);
+                }
+                Err(e) => log::warn!("report: not using {}: {e}", c.display()),
+            },
+            Err(e) => log::warn!("report: cannot read {}: {e:#}", c.display()),
+        }
+    }
+    log::warn!(
+        "report: the pairs table {} was not found; figure 2a shows the mixture without the histogram (--pairs PATH)",
+        input.envelope.input.path
+    );
+    Ok(input)
+}
