@@ -6,7 +6,8 @@
 //!   report`);
 //! - [`perturb_dir`]: perturb a directory of frames (`fogline perturb`);
 //! - [`planner_eval`]: the reference planner on generated clips, clean and perturbed
-//!   (`fogline planner eval`).
+//!   (`fogline planner eval`);
+//! - [`world`]: a corpus of clips on disk (`fogline world generate`).
 //!
 //! The benchmark engines are in `fogline-bench`; the analyses, the world, the planner, the
 //! campaign runner, the closed loop and the report in their own crates, which this one sits
@@ -16,3 +17,4 @@ pub mod demo;
 pub mod envelope;
 pub mod perturb_dir;
 pub mod planner_eval;
+pub mod world;

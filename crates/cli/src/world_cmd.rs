@@ -2,7 +2,6 @@
 //! docs/clip-format.md) and `fogline world show` (a summary of one clip directory, which also
 //! checks it against the format).
 
-use std::collections::BTreeSet;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -11,14 +10,6 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use fogline_world::{Clip, ScenarioMix, WorldConfig};
-use rayon::prelude::*;
-use serde::Serialize;
-
-use super::write_atomic;
-use fogline_io::Progress;
-
-/// Name of the corpus manifest, written last into the output directory.
-const CORPUS: &str = "corpus.json";
 
 #[derive(Args)]
 pub struct WorldArgs {
@@ -88,24 +79,6 @@ struct ShowArgs {
     clip: PathBuf,
 }
 
-/// One clip in corpus.json.
-#[derive(Serialize)]
-struct CorpusClip {
-    id: String,
-    scenario: String,
-}
-
-/// corpus.json: what was generated, deterministic (no times, no paths).
-#[derive(Serialize)]
-struct Corpus<'a> {
-    format: &'static str,
-    version: u32,
-    generated_by: String,
-    config: &'a WorldConfig,
-    n_clips: usize,
-    clips: Vec<CorpusClip>,
-}
-
 pub fn world(a: WorldArgs) -> Result<ExitCode> {
     match a.what {
         WorldCommand::Generate(g) => generate(g),
@@ -117,9 +90,6 @@ fn generate(a: GenerateArgs) -> Result<ExitCode> {
     let t0 = Instant::now();
     if a.clips == 0 {
         bail!("--clips must be at least 1");
-    }
-    if a.jobs == Some(0) {
-        bail!("--jobs must be at least 1");
     }
     let mix = match (&a.scenario, a.mix) {
         (Some(s), _) => ScenarioMix::only(s, a.clips).context("--scenario")?,
@@ -133,93 +103,7 @@ fn generate(a: GenerateArgs) -> Result<ExitCode> {
         depth: !a.no_depth,
         mix,
     };
-    config
-        .validate()
-        .context("invalid world parameters (--width, --height, --scenario)")?;
-    if a.out.exists() && !a.out.is_dir() {
-        bail!("--out {} exists and is not a directory", a.out.display());
-    }
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
-    // A manifest from an earlier run would claim that this one completed.
-    let manifest = a.out.join(CORPUS);
-    if manifest.exists() {
-        std::fs::remove_file(&manifest)
-            .with_context(|| format!("cannot remove the old {}", manifest.display()))?;
-    }
-    let total = config.mix.total();
-    let pool = match a.jobs {
-        Some(j) => Some(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(j)
-                .build()
-                .context("cannot start the worker threads")?,
-        ),
-        None => None,
-    };
-    let jobs = pool
-        .as_ref()
-        .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
-    log::info!(
-        "world generate: {total} clips, seed {}, {}x{}{}, {jobs} jobs, into {}",
-        config.seed,
-        config.width,
-        config.height,
-        if config.depth { " + depth" } else { "" },
-        a.out.display()
-    );
-    let progress = Progress::new(total, "clips");
-    let work = || -> Result<Vec<CorpusClip>> {
-        (0..total)
-            .into_par_iter()
-            .map(|i| {
-                let clip = fogline_world::generate_clip(&config, i)
-                    .with_context(|| format!("cannot generate clip {i}"))?;
-                fogline_world::write_clip(&a.out, &clip)
-                    .with_context(|| format!("cannot write clip {}", clip.id))?;
-                progress.inc();
-                Ok(CorpusClip {
-                    id: clip.id,
-                    scenario: clip.scenario,
-                })
-            })
-            .collect()
-    };
-    let clips = match &pool {
-        Some(p) => p.install(work),
-        None => work(),
-    };
-    progress.finish();
-    let clips = clips?;
-
-    let ids: BTreeSet<&str> = clips.iter().map(|c| c.id.as_str()).collect();
-    let stale = fogline_world::list_clips(&a.out)?
-        .iter()
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_none_or(|n| !ids.contains(n))
-        })
-        .count();
-    if stale > 0 {
-        log::warn!(
-            "{} holds {stale} clip directories from an earlier run that are not in this corpus \
-             (corpus.json lists only this run's clips)",
-            a.out.display()
-        );
-    }
-    let corpus = Corpus {
-        format: "fogline-corpus",
-        version: 1,
-        generated_by: format!("fogline {}", env!("CARGO_PKG_VERSION")),
-        config: &config,
-        n_clips: clips.len(),
-        clips,
-    };
-    let mut bytes = serde_json::to_vec_pretty(&corpus)?;
-    bytes.push(b'\n');
-    write_atomic(&manifest, &bytes)?;
-
+    let corpus = fogline_api::world::generate_corpus(&config, &a.out, a.jobs)?;
     let secs = t0.elapsed().as_secs_f64();
     let mut out = std::io::stdout().lock();
     writeln!(
@@ -242,7 +126,11 @@ fn generate(a: GenerateArgs) -> Result<ExitCode> {
         let n = corpus.clips.iter().filter(|c| &c.scenario == s).count();
         writeln!(out, "{s:<16} {n:>6}")?;
     }
-    writeln!(out, "{}", manifest.display())?;
+    writeln!(
+        out,
+        "{}",
+        a.out.join(fogline_world::corpus::CORPUS_FILE).display()
+    )?;
     Ok(ExitCode::SUCCESS)
 }
 

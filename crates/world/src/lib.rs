@@ -9,6 +9,7 @@
 
 pub mod clip;
 pub mod config;
+pub mod corpus;
 pub mod error;
 pub mod format;
 pub mod generate;
