@@ -114,7 +114,10 @@ fn read_closed_loop(dir: &Path) -> Result<ClosedLoop> {
             path.display()
         )
     })?;
-    Ok(ClosedLoop::from_json(&text, &path.display().to_string())?)
+    Ok(fogline_report::closed_loop_from_json(
+        &text,
+        &path.display().to_string(),
+    )?)
 }
 
 fn write_input(input: &ReportInput, params: &ReportParams, out: &Path) -> Result<()> {

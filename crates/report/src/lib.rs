@@ -35,7 +35,7 @@ use std::fmt::Write as _;
 
 use serde::{Deserialize, Serialize};
 
-pub use closed_loop::{ClosedLoop, ClosedLoopRow};
+pub use closed_loop::{ClosedLoop, ClosedLoopRow, check_closed_loop, closed_loop_from_json};
 pub use doc::EnvelopeDoc;
 pub use error::{ReportError, Result};
 pub use figures::Figure;
@@ -114,7 +114,7 @@ impl ReportInput {
 
     /// Adds closed-loop scores (checked).
     pub fn with_closed_loop(mut self, cl: ClosedLoop) -> Result<Self> {
-        cl.check()?;
+        check_closed_loop(&cl)?;
         self.closed_loop = Some(cl);
         Ok(self)
     }
@@ -182,7 +182,7 @@ pub fn render(input: &ReportInput, params: &ReportParams) -> Result<Report> {
     params.validate()?;
     input.envelope.check()?;
     if let Some(cl) = &input.closed_loop {
-        cl.check()?;
+        check_closed_loop(cl)?;
     }
     let cx = Ctx::new(
         &input.envelope,

@@ -82,33 +82,59 @@ pub fn write_all(results: &Results, dir: &Path) -> Result<Written, SimError> {
     Ok(w)
 }
 
+/// `closed_loop.json`: leaderboard-style scores per configuration, what the report's
+/// closed-loop section shows. One typed definition for its writer (this crate) and its
+/// readers (`fogline-report`, through `fogline_report::closed_loop_from_json`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ClosedLoop {
+    /// What produced the rows (tool and version, suite name), shown under the section title.
+    pub source: String,
+    /// One row per configuration, in the order to show.
+    pub configurations: Vec<ClosedLoopRow>,
+    /// Remarks to show under the figure.
+    #[serde(default)]
+    pub notes: Vec<String>,
+}
+
+/// Leaderboard-style scores of one configuration, averaged over its routes.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ClosedLoopRow {
+    /// Configuration name (e.g. `no deficit`, `pedestrian + RCO`).
+    pub configuration: String,
+    /// Routes driven.
+    pub n_routes: usize,
+    /// Mean driving score, 0–100 (route completion × infraction score, per route).
+    pub driving_score: f64,
+    /// Mean route completion, 0–100 (%).
+    pub route_completion: f64,
+    /// Mean infraction score (penalty product), 0–1.
+    pub infraction_score: f64,
+}
+
 /// The report's closed-loop document: one row per configuration (unlimited game time).
-pub fn closed_loop(results: &Results) -> serde_json::Value {
-    let rows: Vec<serde_json::Value> = results
-        .summary
-        .configs
-        .iter()
-        .map(|c| {
-            json!({
-                "configuration": c.config,
-                "n_routes": c.unlimited.runs,
-                "driving_score": c.unlimited.driving_score.by_route.mean,
-                "route_completion": c.unlimited.route_completion.by_route.mean,
-                "infraction_score": c.unlimited.infraction_score.by_route.mean,
-            })
-        })
-        .collect();
-    json!({
-        "source": format!(
+pub fn closed_loop(results: &Results) -> ClosedLoop {
+    ClosedLoop {
+        source: format!(
             "fogline sim {} — suite {}, {} route(s), seed(s) {:?}",
             env!("CARGO_PKG_VERSION"),
             results.params.suite.name,
             results.params.suite.n_routes(),
             results.params.seeds
         ),
-        "configurations": rows,
-        "notes": notes(results),
-    })
+        configurations: results
+            .summary
+            .configs
+            .iter()
+            .map(|c| ClosedLoopRow {
+                configuration: c.config.clone(),
+                n_routes: c.unlimited.runs,
+                driving_score: c.unlimited.driving_score.by_route.mean,
+                route_completion: c.unlimited.route_completion.by_route.mean,
+                infraction_score: c.unlimited.infraction_score.by_route.mean,
+            })
+            .collect(),
+        notes: notes(results),
+    }
 }
 
 fn notes(results: &Results) -> Vec<String> {

@@ -49,7 +49,7 @@ pub fn make_fixture() -> ReportInput {
 /// `tests/data/closed_loop.json`: illustrative numbers in the closed-loop contract.
 pub fn closed_loop() -> ClosedLoop {
     let text = std::fs::read_to_string(crate_dir().join("tests/data/closed_loop.json")).unwrap();
-    ClosedLoop::from_json(&text, "closed_loop.json").unwrap()
+    fogline_report::closed_loop_from_json(&text, "closed_loop.json").unwrap()
 }
 
 /// Small analysis parameters for corpora built on purpose.
