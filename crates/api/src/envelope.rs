@@ -1,6 +1,7 @@
 //! The envelope analysis's files (what `fogline envelope` and `fogline demo` write) and the
 //! HTML report of an envelope directory (what `fogline report` writes).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -62,6 +63,77 @@ pub fn write_report(
         input = input.with_closed_loop(read_closed_loop(dir)?)?;
     }
     write_input(&input, &ReportParams::default(), out)
+}
+
+/// The summary `fogline envelope` prints: the corpus, the aggregate threshold, the ODD entry
+/// per scenario and the files written (`json`: the same as one JSON object).
+pub fn write_summary(env: &Envelope, w: &Written, json: bool, out: &mut dyn Write) -> Result<()> {
+    if json {
+        let v = serde_json::json!({
+            "envelope": w.json,
+            "markdown": w.markdown,
+            "odd": w.odd,
+            "report": w.report,
+            "n_pairs": env.corpus.n_pairs,
+            "n_changed": env.corpus.n_changed,
+            "chosen_k": env.severity.chosen_k,
+            "odd_entries": env.odd,
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+        return Ok(());
+    }
+    let agg = env.thresholds.iter().find(|t| {
+        t.scenario == fogline_envelope::model::AGG_ALL
+            && env.odd.first().is_some_and(|o| o.axis == t.axis)
+            && t.budget == env.parameters.headline_budget
+    });
+    writeln!(
+        out,
+        "{} pairs, {} clips, {} changed CoC; {} severity bands; aggregate threshold ≤ {}",
+        env.corpus.n_pairs,
+        env.corpus.n_clips,
+        env.corpus.n_changed,
+        env.severity
+            .chosen_k
+            .map_or("undefined".into(), |k| k.to_string()),
+        agg.and_then(|t| t.sigma_star)
+            .map_or("none".into(), |v| v.to_string())
+    )?;
+    writeln!(
+        out,
+        "{:<16} {:>6} {:>8} {:>14} {:>8}  quadrant",
+        "scenario", "clips", "sigma*", "95% CI", "P(high)"
+    )?;
+    for o in &env.odd {
+        let lvl = |x: Option<f64>| x.map_or("none".into(), |v| v.to_string());
+        writeln!(
+            out,
+            "{:<16} {:>6} {:>8} {:>14} {:>8}  {}{}{}",
+            o.scenario,
+            o.n_clips,
+            format!(
+                "{}{}",
+                lvl(o.sigma_star),
+                if o.right_censored { "+" } else { "" }
+            ),
+            o.ci95
+                .map_or("-".into(), |[a, b]| format!("[{}, {}]", lvl(a), lvl(b))),
+            o.p_high
+                .map_or("-".into(), |v| format!("{:.1}%", 100.0 * v)),
+            o.quadrant,
+            if o.pilot { " (pilot)" } else { "" },
+            match o.accepted {
+                Some(true) => " ACCEPTED",
+                Some(false) => " REJECTED",
+                None => "",
+            }
+        )?;
+    }
+    writeln!(out, "{}", w.json.display())?;
+    writeln!(out, "{}", w.markdown.display())?;
+    writeln!(out, "{}", w.odd.display())?;
+    writeln!(out, "{}", w.report.display())?;
+    Ok(())
 }
 
 /// What `fogline report` takes.

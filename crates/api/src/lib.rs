@@ -7,6 +7,7 @@
 //! - [`perturb_dir`]: perturb a directory of frames (`fogline perturb`);
 //! - [`planner_eval`]: the reference planner on generated clips, clean and perturbed
 //!   (`fogline planner eval`);
+//! - [`sim`]: the closed-loop evaluation's run, files and summary (`fogline sim run`);
 //! - [`world`]: a corpus of clips on disk (`fogline world generate`).
 //!
 //! The benchmark engines are in `fogline-bench`; the analyses, the world, the planner, the
@@ -17,4 +18,5 @@ pub mod demo;
 pub mod envelope;
 pub mod perturb_dir;
 pub mod planner_eval;
+pub mod sim;
 pub mod world;

@@ -8,6 +8,7 @@
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -537,7 +538,171 @@ pub const PLAN_GOAL_MS: f64 = 5.0;
 /// The paper's corpus size, the world goal's unit.
 pub const PAPER_CLIPS: usize = 1996;
 
-/// Runs `fogline bench world`.
+// ---------------------------------------------------------------------------------------------
+// The report as text
+// ---------------------------------------------------------------------------------------------
+
+fn fmt_m(v: Option<f64>) -> String {
+    v.map_or("-".into(), |v| format!("{v:.2}"))
+}
+
+fn fmt_pct(v: Option<f64>) -> String {
+    v.map_or("-".into(), |v| format!("{:.1}%", 100.0 * v))
+}
+
+fn fmt_ms(v: Option<f64>) -> String {
+    v.map_or("-".into(), |v| format!("{v:.2}"))
+}
+
+impl EvalReport {
+    /// The report as the tables `fogline planner eval` prints.
+    pub fn write_text(&self, out: &mut dyn Write) -> Result<()> {
+        write_eval(self, out)
+    }
+}
+
+fn write_eval(r: &EvalReport, out: &mut dyn Write) -> Result<()> {
+    writeln!(
+        out,
+        "fogline planner eval: {} clips (seed {}), {}x{}, {} cameras x {} frames, perturb seed {}, {} threads, {:.1} s",
+        r.clips,
+        r.seed,
+        r.width,
+        r.height,
+        r.cameras,
+        r.frames_per_camera,
+        r.perturb_seed,
+        r.threads,
+        r.wall_s
+    )?;
+    for c in &r.conditions {
+        writeln!(out)?;
+        writeln!(
+            out,
+            "condition {}{}: plan() {} ms/clip median, {} p95",
+            c.condition,
+            if c.reference { " (reference)" } else { "" },
+            fmt_ms(c.plan_time.median_ms),
+            fmt_ms(c.plan_time.p95_ms)
+        )?;
+        writeln!(
+            out,
+            "{:<14} {:>5} {:>6} {:>8} {:>8} {:>7} {:>9} {:>8}",
+            "scenario", "n", "failed", "ADE med", "ADE mean", "agree", "L2 clean", "CoC chg"
+        )?;
+        for row in c.scenarios.iter().chain(std::iter::once(&c.overall)) {
+            writeln!(
+                out,
+                "{:<14} {:>5} {:>6} {:>8} {:>8} {:>7} {:>9} {:>8}",
+                row.scenario,
+                row.n,
+                row.failed,
+                fmt_m(row.ade_median_m),
+                fmt_m(row.ade_mean_m),
+                fmt_pct(row.agreement),
+                fmt_m(row.l2_vs_clean_mean_m),
+                fmt_pct(row.explanation_changed),
+            )?;
+        }
+        for f in &c.failures {
+            writeln!(out, "failed on {} clips: {}", f.clips, f.reason)?;
+        }
+    }
+    if r.conditions.len() > 1 {
+        writeln!(out)?;
+        writeln!(out, "all scenarios, by condition")?;
+        writeln!(
+            out,
+            "{:<22} {:>6} {:>8} {:>8} {:>7} {:>9} {:>8} {:>8}",
+            "condition", "failed", "ADE med", "ADE mean", "agree", "L2 clean", "CoC chg", "plan ms"
+        )?;
+        for c in &r.conditions {
+            let o = &c.overall;
+            writeln!(
+                out,
+                "{:<22} {:>6} {:>8} {:>8} {:>7} {:>9} {:>8} {:>8}",
+                c.condition,
+                o.failed,
+                fmt_m(o.ade_median_m),
+                fmt_m(o.ade_mean_m),
+                fmt_pct(o.agreement),
+                fmt_m(o.l2_vs_clean_mean_m),
+                fmt_pct(o.explanation_changed),
+                fmt_ms(c.plan_time.median_ms),
+            )?;
+        }
+    }
+    print_confusion(out, &r.clean_confusion)?;
+    Ok(())
+}
+
+fn print_confusion(out: &mut dyn Write, cells: &[ConfusionCell]) -> Result<()> {
+    let mut rows: Vec<&str> = Vec::new();
+    let mut cols: Vec<&str> = Vec::new();
+    for c in cells {
+        if !rows.contains(&c.expert.as_str()) {
+            rows.push(&c.expert);
+        }
+    }
+    // Columns: every decision seen on either side (in Decision::ALL order), then none, failed.
+    for d in Decision::ALL {
+        if cells
+            .iter()
+            .any(|c| c.expert == d.name() || c.planner == d.name())
+        {
+            cols.push(d.name());
+        }
+    }
+    for extra in [NONE, FAILED] {
+        if cells.iter().any(|c| c.planner == extra) {
+            cols.push(extra);
+        }
+    }
+    writeln!(out)?;
+    writeln!(
+        out,
+        "decisions, clean: expert (rows) -> planner (columns), clips"
+    )?;
+    write!(out, "{:<19}", "expert")?;
+    for c in &cols {
+        write!(out, " {:>6}", short(c))?;
+    }
+    writeln!(out)?;
+    for r in &rows {
+        write!(out, "{r:<19}")?;
+        for c in &cols {
+            let n = cells
+                .iter()
+                .find(|x| x.expert == *r && x.planner == *c)
+                .map_or(0, |x| x.clips);
+            if n == 0 {
+                write!(out, " {:>6}", ".")?;
+            } else {
+                write!(out, " {n:>6}")?;
+            }
+        }
+        writeln!(out)?;
+    }
+    Ok(())
+}
+
+/// Column labels of the printed confusion matrix.
+fn short(name: &str) -> &str {
+    match name {
+        "keep_lane" => "keep",
+        "follow_lead" => "follow",
+        "slow_for_lead" => "slow",
+        "nudge_right" => "nudge",
+        "pass_left" => "pass",
+        "turn_right" => "turn_r",
+        "stop_for_sign" => "sign",
+        "stop_for_red_light" => "red",
+        "proceed_on_green" => "green",
+        "yield_to_crossing" => "yield",
+        other => other,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

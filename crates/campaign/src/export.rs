@@ -416,6 +416,30 @@ pub fn write_atomic(
     })
 }
 
+impl ExportSummary {
+    /// What `fogline campaign export` prints.
+    pub fn write_text(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+        let s = self;
+        writeln!(out, "exported {} runs ({} failed)", s.runs, s.failed)?;
+        for (seed, c) in &s.pairs {
+            write!(out, "pairs (seed {seed}): {}", c.pairs)?;
+            let excluded = c.attacked_failed + c.clean_failed + c.clean_missing;
+            if excluded > 0 {
+                write!(
+                    out,
+                    "; excluded {excluded}: {} failed perturbed runs, {} whose clean run failed, {} whose clean run is missing",
+                    c.attacked_failed, c.clean_failed, c.clean_missing
+                )?;
+            }
+            writeln!(out)?;
+        }
+        for f in &s.files {
+            writeln!(out, "wrote {}", f.display())?;
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]

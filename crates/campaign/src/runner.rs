@@ -595,3 +595,38 @@ pub fn run(
     summary.seconds = t.elapsed().as_secs_f64();
     Ok(summary)
 }
+
+impl RunSummary {
+    /// What `fogline campaign run` prints about a run into `store`.
+    pub fn write_text(
+        &self,
+        out: &mut dyn std::io::Write,
+        store: &std::path::Path,
+    ) -> std::io::Result<()> {
+        let s = self;
+        let rate = if s.seconds > 0.0 {
+            s.ran as f64 / s.seconds
+        } else {
+            0.0
+        };
+        writeln!(
+            out,
+            "ran {} runs in {:.1} s ({rate:.1} runs/s): {} ok, {} failed; {} of {} were already in the store",
+            s.ran,
+            s.seconds,
+            s.ran - s.failed,
+            s.failed,
+            s.skipped,
+            s.planned
+        )?;
+        if s.failed > 0 {
+            writeln!(
+                out,
+                "failed runs are recorded with their reasons: fogline campaign status {}",
+                store.display()
+            )?;
+        }
+        writeln!(out, "store: {}", store.display())?;
+        Ok(())
+    }
+}

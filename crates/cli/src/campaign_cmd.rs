@@ -6,8 +6,8 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use fogline_campaign::export::{ExportSummary, Formats};
-use fogline_campaign::{CampaignConfig, RunSummary, Shard, Store};
+use fogline_campaign::export::Formats;
+use fogline_campaign::{CampaignConfig, Shard, Store};
 
 /// Arguments of `fogline campaign`.
 #[derive(Args)]
@@ -143,60 +143,13 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     let (_, summary) =
         fogline_campaign::run_into_store(config, &store_path, shard, a.resume, a.retry_failed)?;
     let mut out = std::io::stdout().lock();
-    print_run(&mut out, &summary, &store_path)?;
+    summary.write_text(&mut out, &store_path)?;
     if let Some(dir) = &a.export {
         let store = Store::open(&store_path)?;
         let s = fogline_campaign::export::export(&store.runs()?, dir, formats, false)?;
-        print_export(&mut out, &s)?;
+        s.write_text(&mut out)?;
     }
     Ok(ExitCode::SUCCESS)
-}
-
-pub(crate) fn print_run(out: &mut impl std::io::Write, s: &RunSummary, store: &Path) -> Result<()> {
-    let rate = if s.seconds > 0.0 {
-        s.ran as f64 / s.seconds
-    } else {
-        0.0
-    };
-    writeln!(
-        out,
-        "ran {} runs in {:.1} s ({rate:.1} runs/s): {} ok, {} failed; {} of {} were already in the store",
-        s.ran,
-        s.seconds,
-        s.ran - s.failed,
-        s.failed,
-        s.skipped,
-        s.planned
-    )?;
-    if s.failed > 0 {
-        writeln!(
-            out,
-            "failed runs are recorded with their reasons: fogline campaign status {}",
-            store.display()
-        )?;
-    }
-    writeln!(out, "store: {}", store.display())?;
-    Ok(())
-}
-
-pub(crate) fn print_export(out: &mut impl std::io::Write, s: &ExportSummary) -> Result<()> {
-    writeln!(out, "exported {} runs ({} failed)", s.runs, s.failed)?;
-    for (seed, c) in &s.pairs {
-        write!(out, "pairs (seed {seed}): {}", c.pairs)?;
-        let excluded = c.attacked_failed + c.clean_failed + c.clean_missing;
-        if excluded > 0 {
-            write!(
-                out,
-                "; excluded {excluded}: {} failed perturbed runs, {} whose clean run failed, {} whose clean run is missing",
-                c.attacked_failed, c.clean_failed, c.clean_missing
-            )?;
-        }
-        writeln!(out)?;
-    }
-    for f in &s.files {
-        writeln!(out, "wrote {}", f.display())?;
-    }
-    Ok(())
 }
 
 fn status(a: StatusArgs) -> Result<ExitCode> {
@@ -263,7 +216,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
     let formats = Formats::parse(&a.format).map_err(anyhow::Error::msg)?;
     let store = Store::open(&a.store)?;
     let s = fogline_campaign::export::export(&store.runs()?, &a.out, formats, a.timing)?;
-    print_export(&mut std::io::stdout().lock(), &s)?;
+    s.write_text(&mut std::io::stdout().lock())?;
     Ok(ExitCode::SUCCESS)
 }
 

@@ -329,7 +329,7 @@ fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
     let env = fogline_envelope::analyze(&table, &p)?;
     log::info!("analysed in {:.2} s", t1.elapsed().as_secs_f64());
     let written = fogline_api::envelope::write_outputs(&env, &table, &a.out, None)?;
-    print_summary(&env, &written, a.json)?;
+    fogline_api::envelope::write_summary(&env, &written, a.json, &mut std::io::stdout().lock())?;
     Ok(gate(&env))
 }
 
@@ -354,76 +354,6 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(fogline_io::write_atomic(path, bytes)?)
 }
 
-fn print_summary(env: &Envelope, w: &fogline_api::envelope::Written, json: bool) -> Result<()> {
-    let mut out = std::io::stdout().lock();
-    if json {
-        let v = serde_json::json!({
-            "envelope": w.json,
-            "markdown": w.markdown,
-            "odd": w.odd,
-            "report": w.report,
-            "n_pairs": env.corpus.n_pairs,
-            "n_changed": env.corpus.n_changed,
-            "chosen_k": env.severity.chosen_k,
-            "odd_entries": env.odd,
-        });
-        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
-        return Ok(());
-    }
-    let agg = env.thresholds.iter().find(|t| {
-        t.scenario == fogline_envelope::model::AGG_ALL
-            && env.odd.first().is_some_and(|o| o.axis == t.axis)
-            && t.budget == env.parameters.headline_budget
-    });
-    writeln!(
-        out,
-        "{} pairs, {} clips, {} changed CoC; {} severity bands; aggregate threshold ≤ {}",
-        env.corpus.n_pairs,
-        env.corpus.n_clips,
-        env.corpus.n_changed,
-        env.severity
-            .chosen_k
-            .map_or("undefined".into(), |k| k.to_string()),
-        agg.and_then(|t| t.sigma_star)
-            .map_or("none".into(), |v| v.to_string())
-    )?;
-    writeln!(
-        out,
-        "{:<16} {:>6} {:>8} {:>14} {:>8}  quadrant",
-        "scenario", "clips", "sigma*", "95% CI", "P(high)"
-    )?;
-    for o in &env.odd {
-        let lvl = |x: Option<f64>| x.map_or("none".into(), |v| v.to_string());
-        writeln!(
-            out,
-            "{:<16} {:>6} {:>8} {:>14} {:>8}  {}{}{}",
-            o.scenario,
-            o.n_clips,
-            format!(
-                "{}{}",
-                lvl(o.sigma_star),
-                if o.right_censored { "+" } else { "" }
-            ),
-            o.ci95
-                .map_or("-".into(), |[a, b]| format!("[{}, {}]", lvl(a), lvl(b))),
-            o.p_high
-                .map_or("-".into(), |v| format!("{:.1}%", 100.0 * v)),
-            o.quadrant,
-            if o.pilot { " (pilot)" } else { "" },
-            match o.accepted {
-                Some(true) => " ACCEPTED",
-                Some(false) => " REJECTED",
-                None => "",
-            }
-        )?;
-    }
-    writeln!(out, "{}", w.json.display())?;
-    writeln!(out, "{}", w.markdown.display())?;
-    writeln!(out, "{}", w.odd.display())?;
-    writeln!(out, "{}", w.report.display())?;
-    Ok(())
-}
-
 fn demo(a: DemoArgs) -> Result<ExitCode> {
     let d = fogline_api::demo::run(&fogline_api::demo::DemoJob {
         clips: a.clips,
@@ -432,10 +362,15 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
         closed_loop: !a.no_closed_loop,
     })?;
     let mut out = std::io::stdout().lock();
-    campaign_cmd::print_run(&mut out, &d.run, &d.store)?;
-    campaign_cmd::print_export(&mut out, &d.exported)?;
+    d.run.write_text(&mut out, &d.store)?;
+    d.exported.write_text(&mut out)?;
     drop(out);
-    print_summary(&d.envelope, &d.written, false)?;
+    fogline_api::envelope::write_summary(
+        &d.envelope,
+        &d.written,
+        false,
+        &mut std::io::stdout().lock(),
+    )?;
     let mut out = std::io::stdout().lock();
     if let Some((results, dir, secs)) = &d.closed_loop {
         writeln!(

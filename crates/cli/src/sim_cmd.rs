@@ -5,14 +5,12 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use fogline_rco::OpenAiParams;
 use fogline_sim::config::{BackendSetup, ConfigSet, configs};
-use fogline_sim::experiment::{ExperimentParams, run_experiment};
-use fogline_sim::output::{markdown, write_all};
+use fogline_sim::experiment::ExperimentParams;
 use fogline_sim::run::RunParams;
 use fogline_sim::sense::DeficitKind;
 use fogline_sim::suite::SuiteParams;
@@ -192,94 +190,13 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         llm_latency_ms,
         routes: (!a.routes.is_empty()).then(|| a.routes.clone()),
     };
-    params.validate()?;
-    let n_routes = params
-        .routes
-        .as_ref()
-        .map_or(params.suite.n_routes(), Vec::len);
-    let n_runs = n_routes * params.configs.len() * params.seeds.len();
-    log::info!(
-        "sim run: suite {} ({} routes) x {} configuration(s) x {} seed(s) = {n_runs} runs on {} thread(s)",
-        params.suite.name,
-        params.suite.n_routes(),
-        params.configs.len(),
-        params.seeds.len(),
-        rayon::current_num_threads()
-    );
-    let start = Instant::now();
-    let step = (n_runs / 20).max(1);
-    let progress = move |done: usize, total: usize| {
-        if done.is_multiple_of(step) || done == total {
-            log::info!(
-                "{done}/{total} runs, {:.0} s",
-                start.elapsed().as_secs_f64()
-            );
-        }
-    };
-    let results = run_experiment(&params, 0, &progress)?;
-    let written = write_all(&results, &a.out)
-        .with_context(|| format!("writing results to {}", a.out.display()))?;
-    let mut stdout = std::io::stdout().lock();
-    use std::io::Write as _;
-    if a.json {
-        let doc = serde_json::json!({
-            "summary": results.summary,
-            "wall_s": results.wall_s,
-            "threads": results.threads,
-            "warnings": results.warnings,
-            "files": {
-                "results": written.results,
-                "records": written.records,
-                "tables": written.tables,
-                "closed_loop": written.closed_loop,
-            },
-        });
-        writeln!(stdout, "{}", serde_json::to_string_pretty(&doc)?)?;
-        return Ok(ExitCode::SUCCESS);
-    }
-    write!(stdout, "{}", markdown(&results))?;
-    // The speed goal: the full suite's deficit runs (36 routes × 4 deficits × with/without
-    // RCO, one seed) within 10 minutes on two cores.
-    let deficit_runs = results
-        .records
-        .iter()
-        .filter(|r| {
-            params
-                .configs
-                .iter()
-                .any(|c| c.name == r.config && c.deficit.is_some())
-        })
-        .count();
-    let elapsed_deficit = results.summary.deficit_runs_wall_s / results.threads.max(1) as f64;
-    writeln!(
-        stdout,
-        "\nfogline sim run: {} runs in {:.1} s ({} thread(s)); {} deficit runs: {:.1} s of worker time, about {:.1} s elapsed (goal for the full suite, 288 runs on 2 cores: <= 600 s{})",
-        results.records.len(),
-        results.wall_s,
-        results.threads,
-        deficit_runs,
-        results.summary.deficit_runs_wall_s,
-        elapsed_deficit,
-        if deficit_runs == 288 && results.threads == 2 {
-            if elapsed_deficit <= 600.0 {
-                ": met"
-            } else {
-                ": NOT met"
-            }
-        } else {
-            ""
-        }
-    )?;
-    for w in &results.warnings {
-        writeln!(stdout, "warning: {w}")?;
-    }
-    writeln!(
-        stdout,
-        "wrote {}, {}, {}, {}",
-        written.tables.display(),
-        written.results.display(),
-        written.records.display(),
-        written.closed_loop.display()
+    let (results, written) = fogline_api::sim::run(&params, &a.out)?;
+    fogline_api::sim::write_summary(
+        &params,
+        &results,
+        &written,
+        a.json,
+        &mut std::io::stdout().lock(),
     )?;
     Ok(ExitCode::SUCCESS)
 }
