@@ -52,6 +52,8 @@ pub struct DemoOutcome {
     pub closed_loop: Option<(Results, PathBuf, f64)>,
     /// Wall time of the whole demo, s.
     pub seconds: f64,
+    /// The output directory.
+    pub out: PathBuf,
 }
 
 /// Runs the demo (progress on stderr through the log and the progress bars).
@@ -133,7 +135,45 @@ pub fn run(job: &DemoJob) -> Result<DemoOutcome> {
         written,
         closed_loop,
         seconds: t.elapsed().as_secs_f64(),
+        out: job.out.clone(),
     })
+}
+
+impl DemoOutcome {
+    /// What `fogline demo` prints: the campaign run and export, the envelope summary, the
+    /// closed loop's scores and where everything is.
+    pub fn write_text(&self, out: &mut dyn std::io::Write) -> Result<()> {
+        let d = self;
+        d.run.write_text(out, &d.store)?;
+        d.exported.write_text(out)?;
+        crate::envelope::write_summary(&d.envelope, &d.written, false, out)?;
+        if let Some((results, dir, secs)) = &d.closed_loop {
+            writeln!(
+                out,
+                "closed loop ({} runs in {secs:.1} s): driving score, mean of the routes",
+                results.records.len()
+            )?;
+            for c in &results.summary.configs {
+                let m = &c.unlimited;
+                writeln!(
+                    out,
+                    "  {:<22} DS {:6.2}  RC {:6.2}  IS {:.3}",
+                    c.config,
+                    m.driving_score.by_route.mean,
+                    m.route_completion.by_route.mean,
+                    m.infraction_score.by_route.mean
+                )?;
+            }
+            writeln!(out, "{}", dir.display())?;
+        }
+        writeln!(
+            out,
+            "demo finished in {:.1} s; everything is in {}",
+            d.seconds,
+            d.out.display()
+        )?;
+        Ok(())
+    }
 }
 
 /// The quick closed loop: the quick suite (2 towns × 2 routes), every main configuration (no

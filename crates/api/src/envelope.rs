@@ -9,6 +9,39 @@ use fogline_envelope::{Envelope, PairTable, ReadOptions};
 use fogline_io::write_atomic;
 use fogline_report::{ClosedLoop, ReportInput, ReportParams};
 
+/// Reads the pairs table at `pairs` and analyses it with `params` (a `Given` taxonomy
+/// without classes takes the data's labels), logging the time each takes.
+pub fn analyze_file(
+    pairs: &Path,
+    opts: &ReadOptions,
+    mut params: fogline_envelope::EnvelopeParams,
+) -> Result<(PairTable, Envelope)> {
+    let t0 = std::time::Instant::now();
+    log::info!("reading {}", pairs.display());
+    let table = fogline_envelope::read_pairs(pairs, opts)?;
+    log::info!(
+        "read {} pairs of {} clips in {:.2} s",
+        table.len(),
+        table.clip_ids.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    params.take_labels_from(&table);
+    let t1 = std::time::Instant::now();
+    let env = fogline_envelope::analyze(&table, &params)?;
+    log::info!("analysed in {:.2} s", t1.elapsed().as_secs_f64());
+    Ok((table, env))
+}
+
+/// The well-sampled scenarios rejected under π* (the acceptance gate: `fogline envelope`
+/// exits 1 when there is any).
+pub fn rejected(env: &Envelope) -> Vec<&str> {
+    env.odd
+        .iter()
+        .filter(|o| o.accepted == Some(false) && !o.pilot)
+        .map(|o| o.scenario.as_str())
+        .collect()
+}
+
 /// The files an analysis writes into its directory.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Written {

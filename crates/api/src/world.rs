@@ -3,12 +3,13 @@
 //! last.
 
 use std::collections::BTreeSet;
+use std::io::Write;
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use fogline_io::{Progress, write_atomic};
-use fogline_world::WorldConfig;
 use fogline_world::corpus::{CORPUS_FILE, Corpus, CorpusClip};
+use fogline_world::{Clip, WorldConfig};
 use rayon::prelude::*;
 
 /// Generates every clip of `config` into `out` (created if needed) on `jobs` threads (default:
@@ -102,4 +103,111 @@ pub fn generate_corpus(config: &WorldConfig, out: &Path, jobs: Option<usize>) ->
     bytes.push(b'\n');
     write_atomic(&manifest, &bytes)?;
     Ok(corpus)
+}
+
+/// Reads the clip directory `dir` (checking it against the clip format; a corpus directory
+/// given by mistake is named as such) and writes the summary `fogline world show` prints.
+pub fn show_clip(dir: &Path, out: &mut dyn Write) -> Result<Clip> {
+    let clip = fogline_world::read_clip(dir).with_context(|| {
+        // A corpus directory given by mistake: say so.
+        let clips = if dir.join(fogline_world::format::CLIP_JSON).exists() {
+            0
+        } else {
+            fogline_world::list_clips(dir).map_or(0, |v| v.len())
+        };
+        if clips > 0 {
+            format!(
+                "{} is not a clip but holds {clips} clip directories: give one of them",
+                dir.display()
+            )
+        } else {
+            format!("{} is not a valid clip", dir.display())
+        }
+    })?;
+    write_summary(out, dir, &clip)?;
+    Ok(clip)
+}
+
+/// The summary `world show` prints (`+ 0.0` turns a `-0` time into `0`).
+fn write_summary(out: &mut dyn Write, dir: &Path, clip: &Clip) -> Result<()> {
+    let times: Vec<String> = clip
+        .cameras
+        .first()
+        .map(|c| {
+            c.frames
+                .iter()
+                .map(|f| format!("{}", f.t_s + 0.0))
+                .collect()
+        })
+        .unwrap_or_default();
+    writeln!(out, "clip          {} ({})", clip.id, dir.display())?;
+    writeln!(out, "scenario      {}", clip.scenario)?;
+    writeln!(
+        out,
+        "frames        {} per camera at t = {} s",
+        times.len(),
+        times.join(", ")
+    )?;
+    writeln!(
+        out,
+        "{:<28} {:>10} {:>6}  boxes per frame",
+        "camera", "size", "depth"
+    )?;
+    for cam in &clip.cameras {
+        let boxes: Vec<String> = cam
+            .frames
+            .iter()
+            .map(|f| f.boxes.len().to_string())
+            .collect();
+        let depth = cam.frames.iter().all(|f| f.depth.is_some());
+        writeln!(
+            out,
+            "{:<28} {:>10} {:>6}  {}",
+            cam.calib.id.name(),
+            format!("{}x{}", cam.calib.width, cam.calib.height),
+            if depth { "yes" } else { "no" },
+            boxes.join(" ")
+        )?;
+    }
+    if let (Some(first), Some(last)) = (clip.ego_history.first(), clip.ego_history.last()) {
+        writeln!(
+            out,
+            "ego history   {} poses, t = {} … {} s, speed at t0 {:.2} m/s",
+            clip.ego_history.len(),
+            first.t_s + 0.0,
+            last.t_s + 0.0,
+            last.speed_mps
+        )?;
+    }
+    if let (Some(a), Some(b)) = (clip.ground_truth.xy.first(), clip.ground_truth.xy.last()) {
+        writeln!(
+            out,
+            "ground truth  {} waypoints: first ({:.2}, {:.2}) m, last ({:.2}, {:.2}) m",
+            clip.ground_truth.xy.len(),
+            a[0],
+            a[1],
+            b[0],
+            b[1]
+        )?;
+    }
+    writeln!(
+        out,
+        "decision      {}",
+        clip.scene
+            .decision
+            .map_or_else(|| "(not given)".to_string(), |d| d.name().to_string())
+    )?;
+    if !clip.scene.facts.is_empty() {
+        let facts: Vec<String> = clip
+            .scene
+            .facts
+            .iter()
+            .map(|(k, v)| match v {
+                serde_json::Value::String(s) => format!("{k}={s}"),
+                other => format!("{k}={other}"),
+            })
+            .collect();
+        writeln!(out, "facts         {}", facts.join(", "))?;
+    }
+    Ok(())
 }

@@ -480,6 +480,39 @@ pub(crate) fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// The configuration `fogline campaign init` writes.
+pub const TEMPLATE: &str = r#"# A fogline campaign: clips × conditions × seeds against a planner.
+# Run it with:  fogline campaign run campaign.toml --export out/
+
+[clips]
+source = "world"      # "world" (generated) or "dir" (clips in the documented clip format)
+count = 200           # world: number of clips
+seed = 0              # world: corpus seed
+mix = "paper"         # world: "paper" (the paper's proportions), "uniform", or one scenario label
+width = 576           # world: image size, px (up to 1920×1080)
+height = 320
+# path = "clips/"     # dir: the directory of clips (relative to this file)
+
+[conditions]
+# clean is always run. Any condition of `fogline perturb` works, chains with "+".
+names = ["noise_10", "noise_30", "noise_50", "noise_70", "dark", "bright", "fog_03", "fog_07"]
+seeds = [0]
+
+[planner]
+kind = "builtin"      # "builtin", "egodriver" (AlpaSim gRPC) or "http" (docs/remote.md)
+# endpoint = "127.0.0.1:50051"          # egodriver: host:port
+# endpoint = "http://127.0.0.1:8080"    # http: base URL
+# image_format = "png"                  # remote planners: "png" or "jpeg"
+# jpeg_quality = 95
+# explanation_fields = ["coc", "reasoning", "explanation"]
+
+[run]
+concurrency = 0       # runs in flight; 0 = cores (builtin) or 8 (remote)
+timeout_s = 60        # per request to a remote planner
+retries = 2           # retries of timeouts, unreachable endpoints and remote errors
+backoff_ms = 250      # first retry delay; doubles each retry
+"#;
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -551,5 +584,14 @@ mod tests {
             let e = CampaignConfig::from_toml(text).unwrap_err().to_string();
             assert!(e.contains(needle), "{text:?}: {e}");
         }
+    }
+}
+
+#[cfg(test)]
+mod template_tests {
+    #[test]
+    fn the_init_template_is_a_valid_configuration() {
+        let c = super::CampaignConfig::from_toml(super::TEMPLATE);
+        assert!(c.is_ok(), "{c:?}");
     }
 }

@@ -37,6 +37,25 @@ fn shard_set(meta: &StoreMeta) -> Vec<u32> {
     }
 }
 
+impl MergeSummary {
+    /// What `fogline campaign merge` prints about a merge into `out`.
+    pub fn write_text(&self, out_path: &Path, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+        writeln!(
+            out,
+            "merged {} runs of shards {:?} (of {}) into {}{}",
+            self.runs,
+            self.shards,
+            self.count,
+            out_path.display(),
+            if self.complete() {
+                ""
+            } else {
+                " — not every shard is there yet"
+            }
+        )
+    }
+}
+
 /// Merges shard stores of one campaign into a new store at `out`. The inputs must come from
 /// the same configuration and the same shard count, and hold different shards; the result is
 /// run for run what one store running those shards would hold.
@@ -237,4 +256,76 @@ fn planned(meta: &StoreMeta) -> Option<usize> {
         .filter(|&i| shards.contains(&((i % meta.shard.count as usize) as u32)))
         .count();
     Some(in_shards * conditions * seeds)
+}
+
+impl Status {
+    /// What `fogline campaign status` prints about the store at `store` (`json`: one JSON
+    /// object instead).
+    pub fn write_text(
+        &self,
+        store: &Path,
+        json: bool,
+        out: &mut dyn std::io::Write,
+    ) -> std::io::Result<()> {
+        let s = self;
+        if json {
+            let v = serde_json::json!({
+                "store": store,
+                "config_hash": s.meta.config_hash,
+                "shard": s.meta.shard.to_string(),
+                "merged_shards": s.meta.merged,
+                "planned": s.planned,
+                "ok": s.ok,
+                "failed": s.failed,
+                "pending": s.planned.map(|p| p.saturating_sub(s.ok + s.failed)),
+                "by_condition": s.by_condition.iter().map(|(n, ok, f)| serde_json::json!({"condition": n, "ok": ok, "failed": f})).collect::<Vec<_>>(),
+                "failures": s.failures.iter().map(|(k, n)| serde_json::json!({"kind": k, "count": n})).collect::<Vec<_>>(),
+                "examples": s.examples,
+            });
+            writeln!(
+                out,
+                "{}",
+                serde_json::to_string_pretty(&v).map_err(std::io::Error::other)?
+            )?;
+            return Ok(());
+        }
+        writeln!(out, "store    {}", store.display())?;
+        writeln!(out, "config   {}", s.meta.config_hash)?;
+        if s.meta.merged.is_empty() {
+            writeln!(out, "shard    {}", s.meta.shard)?;
+        } else {
+            writeln!(
+                out,
+                "shards   {:?} of {} (merged)",
+                s.meta.merged, s.meta.shard.count
+            )?;
+        }
+        let finished = s.ok + s.failed;
+        match s.planned {
+            Some(p) => writeln!(
+                out,
+                "runs     {finished} of {p} finished ({:.1} %): {} ok, {} failed, {} pending",
+                100.0 * finished as f64 / p.max(1) as f64,
+                s.ok,
+                s.failed,
+                p.saturating_sub(finished)
+            )?,
+            None => writeln!(out, "runs     {finished}: {} ok, {} failed", s.ok, s.failed)?,
+        }
+        writeln!(out, "\n{:<24} {:>8} {:>8}", "condition", "ok", "failed")?;
+        for (n, ok, f) in &s.by_condition {
+            writeln!(out, "{n:<24} {ok:>8} {f:>8}")?;
+        }
+        if !s.failures.is_empty() {
+            writeln!(out, "\nfailures by kind:")?;
+            for (k, n) in &s.failures {
+                writeln!(out, "  {k}: {n}")?;
+            }
+            writeln!(out, "examples:")?;
+            for e in &s.examples {
+                writeln!(out, "  {e}")?;
+            }
+        }
+        Ok(())
+    }
 }

@@ -4,7 +4,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
 use fogline_campaign::export::Formats;
 use fogline_campaign::{CampaignConfig, Shard, Store};
@@ -154,61 +154,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
 
 fn status(a: StatusArgs) -> Result<ExitCode> {
     let s = fogline_campaign::merge::status(&a.store)?;
-    let mut out = std::io::stdout().lock();
-    if a.json {
-        let v = serde_json::json!({
-            "store": a.store,
-            "config_hash": s.meta.config_hash,
-            "shard": s.meta.shard.to_string(),
-            "merged_shards": s.meta.merged,
-            "planned": s.planned,
-            "ok": s.ok,
-            "failed": s.failed,
-            "pending": s.planned.map(|p| p.saturating_sub(s.ok + s.failed)),
-            "by_condition": s.by_condition.iter().map(|(n, ok, f)| serde_json::json!({"condition": n, "ok": ok, "failed": f})).collect::<Vec<_>>(),
-            "failures": s.failures.iter().map(|(k, n)| serde_json::json!({"kind": k, "count": n})).collect::<Vec<_>>(),
-            "examples": s.examples,
-        });
-        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
-        return Ok(ExitCode::SUCCESS);
-    }
-    writeln!(out, "store    {}", a.store.display())?;
-    writeln!(out, "config   {}", s.meta.config_hash)?;
-    if s.meta.merged.is_empty() {
-        writeln!(out, "shard    {}", s.meta.shard)?;
-    } else {
-        writeln!(
-            out,
-            "shards   {:?} of {} (merged)",
-            s.meta.merged, s.meta.shard.count
-        )?;
-    }
-    let finished = s.ok + s.failed;
-    match s.planned {
-        Some(p) => writeln!(
-            out,
-            "runs     {finished} of {p} finished ({:.1} %): {} ok, {} failed, {} pending",
-            100.0 * finished as f64 / p.max(1) as f64,
-            s.ok,
-            s.failed,
-            p.saturating_sub(finished)
-        )?,
-        None => writeln!(out, "runs     {finished}: {} ok, {} failed", s.ok, s.failed)?,
-    }
-    writeln!(out, "\n{:<24} {:>8} {:>8}", "condition", "ok", "failed")?;
-    for (n, ok, f) in &s.by_condition {
-        writeln!(out, "{n:<24} {ok:>8} {f:>8}")?;
-    }
-    if !s.failures.is_empty() {
-        writeln!(out, "\nfailures by kind:")?;
-        for (k, n) in &s.failures {
-            writeln!(out, "  {k}: {n}")?;
-        }
-        writeln!(out, "examples:")?;
-        for e in &s.examples {
-            writeln!(out, "  {e}")?;
-        }
-    }
+    s.write_text(&a.store, a.json, &mut std::io::stdout().lock())?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -222,64 +168,15 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
 
 fn merge(a: MergeArgs) -> Result<ExitCode> {
     let s = fogline_campaign::merge::merge(&a.out, &a.stores)?;
-    let mut out = std::io::stdout().lock();
-    writeln!(
-        out,
-        "merged {} runs of shards {:?} (of {}) into {}{}",
-        s.runs,
-        s.shards,
-        s.count,
-        a.out.display(),
-        if s.complete() {
-            ""
-        } else {
-            " — not every shard is there yet"
-        }
-    )?;
+    s.write_text(&a.out, &mut std::io::stdout().lock())?;
     Ok(ExitCode::SUCCESS)
 }
-
-/// The configuration `fogline campaign init` writes.
-pub(crate) const TEMPLATE: &str = r#"# A fogline campaign: clips × conditions × seeds against a planner.
-# Run it with:  fogline campaign run campaign.toml --export out/
-
-[clips]
-source = "world"      # "world" (generated) or "dir" (clips in the documented clip format)
-count = 200           # world: number of clips
-seed = 0              # world: corpus seed
-mix = "paper"         # world: "paper" (the paper's proportions), "uniform", or one scenario label
-width = 576           # world: image size, px (up to 1920×1080)
-height = 320
-# path = "clips/"     # dir: the directory of clips (relative to this file)
-
-[conditions]
-# clean is always run. Any condition of `fogline perturb` works, chains with "+".
-names = ["noise_10", "noise_30", "noise_50", "noise_70", "dark", "bright", "fog_03", "fog_07"]
-seeds = [0]
-
-[planner]
-kind = "builtin"      # "builtin", "egodriver" (AlpaSim gRPC) or "http" (docs/remote.md)
-# endpoint = "127.0.0.1:50051"          # egodriver: host:port
-# endpoint = "http://127.0.0.1:8080"    # http: base URL
-# image_format = "png"                  # remote planners: "png" or "jpeg"
-# jpeg_quality = 95
-# explanation_fields = ["coc", "reasoning", "explanation"]
-
-[run]
-concurrency = 0       # runs in flight; 0 = cores (builtin) or 8 (remote)
-timeout_s = 60        # per request to a remote planner
-retries = 2           # retries of timeouts, unreachable endpoints and remote errors
-backoff_ms = 250      # first retry delay; doubles each retry
-"#;
 
 fn init(a: InitArgs) -> Result<ExitCode> {
     if a.config.exists() {
         bail!("{} already exists; not overwriting it", a.config.display());
     }
-    CampaignConfig::from_toml(TEMPLATE).context("the built-in template is invalid")?;
-    fogline_campaign::export::write_atomic(&a.config, |w| {
-        w.write_all(TEMPLATE.as_bytes()).map_err(|e| e.to_string())
-    })?;
+    fogline_io::write_atomic(&a.config, fogline_campaign::config::TEMPLATE.as_bytes())?;
     writeln!(
         std::io::stdout().lock(),
         "wrote {}; run it with: fogline campaign run {} --export out/",

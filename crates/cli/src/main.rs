@@ -14,14 +14,13 @@ mod serve_cmd;
 mod sim_cmd;
 mod world_cmd;
 
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use fogline_envelope::{
-    Bands, BootstrapMethod, Envelope, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule,
+    Bands, BootstrapMethod, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule,
 };
 
 #[derive(Parser)]
@@ -307,7 +306,6 @@ fn params(a: &AnalysisArgs) -> Result<EnvelopeParams> {
 }
 
 fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
-    let mut p = params(&a.analysis)?;
     let mut opts = ReadOptions {
         allow_incomplete: a.analysis.allow_incomplete,
         ..ReadOptions::default()
@@ -315,43 +313,16 @@ fn envelope(a: EnvelopeArgs) -> Result<ExitCode> {
     if let Some(path) = &a.analysis.actions {
         opts.actions = fogline_envelope::text::ActionRules::from_toml_file(path)?;
     }
-    let t0 = std::time::Instant::now();
-    log::info!("reading {}", a.pairs.display());
-    let table = fogline_envelope::read_pairs(&a.pairs, &opts)?;
-    log::info!(
-        "read {} pairs of {} clips in {:.2} s",
-        table.len(),
-        table.clip_ids.len(),
-        t0.elapsed().as_secs_f64()
-    );
-    p.take_labels_from(&table);
-    let t1 = std::time::Instant::now();
-    let env = fogline_envelope::analyze(&table, &p)?;
-    log::info!("analysed in {:.2} s", t1.elapsed().as_secs_f64());
+    let (table, env) = fogline_api::envelope::analyze_file(&a.pairs, &opts, params(&a.analysis)?)?;
     let written = fogline_api::envelope::write_outputs(&env, &table, &a.out, None)?;
     fogline_api::envelope::write_summary(&env, &written, a.json, &mut std::io::stdout().lock())?;
-    Ok(gate(&env))
-}
-
-/// Exit 1 when acceptance was asked for and a well-sampled scenario is rejected.
-fn gate(env: &Envelope) -> ExitCode {
-    let rejected: Vec<&str> = env
-        .odd
-        .iter()
-        .filter(|o| o.accepted == Some(false) && !o.pilot)
-        .map(|o| o.scenario.as_str())
-        .collect();
+    // Exit 1 when acceptance was asked for and a well-sampled scenario is rejected.
+    let rejected = fogline_api::envelope::rejected(&env);
     if rejected.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        log::warn!("gate failed: rejected under π*: {}", rejected.join(", "));
-        ExitCode::from(1)
+        return Ok(ExitCode::SUCCESS);
     }
-}
-
-/// Writes `bytes` to `path` atomically ([`fogline_io::write_atomic`]).
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    Ok(fogline_io::write_atomic(path, bytes)?)
+    log::warn!("gate failed: rejected under π*: {}", rejected.join(", "));
+    Ok(ExitCode::from(1))
 }
 
 fn demo(a: DemoArgs) -> Result<ExitCode> {
@@ -361,41 +332,6 @@ fn demo(a: DemoArgs) -> Result<ExitCode> {
         out: a.out.clone(),
         closed_loop: !a.no_closed_loop,
     })?;
-    let mut out = std::io::stdout().lock();
-    d.run.write_text(&mut out, &d.store)?;
-    d.exported.write_text(&mut out)?;
-    drop(out);
-    fogline_api::envelope::write_summary(
-        &d.envelope,
-        &d.written,
-        false,
-        &mut std::io::stdout().lock(),
-    )?;
-    let mut out = std::io::stdout().lock();
-    if let Some((results, dir, secs)) = &d.closed_loop {
-        writeln!(
-            out,
-            "closed loop ({} runs in {secs:.1} s): driving score, mean of the routes",
-            results.records.len()
-        )?;
-        for c in &results.summary.configs {
-            let m = &c.unlimited;
-            writeln!(
-                out,
-                "  {:<22} DS {:6.2}  RC {:6.2}  IS {:.3}",
-                c.config,
-                m.driving_score.by_route.mean,
-                m.route_completion.by_route.mean,
-                m.infraction_score.by_route.mean
-            )?;
-        }
-        writeln!(out, "{}", dir.display())?;
-    }
-    writeln!(
-        out,
-        "demo finished in {:.1} s; everything is in {}",
-        d.seconds,
-        a.out.display()
-    )?;
+    d.write_text(&mut std::io::stdout().lock())?;
     Ok(ExitCode::SUCCESS)
 }

@@ -8,8 +8,6 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use fogline_api::planner_eval::{PlannerEval, evaluate};
 
-use super::write_atomic;
-
 #[derive(Args)]
 pub struct PlannerArgs {
     #[command(subcommand)]
@@ -103,7 +101,7 @@ fn eval(a: EvalArgs) -> Result<ExitCode> {
     })?;
     if let Some(path) = &a.json {
         let bytes = serde_json::to_vec_pretty(&report).context("cannot serialise the figures")?;
-        write_atomic(path, &bytes)?;
+        fogline_io::write_atomic(path, &bytes)?;
         log::info!("wrote {}", path.display());
     }
     report.write_text(&mut std::io::stdout().lock())?;

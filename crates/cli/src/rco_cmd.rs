@@ -3,15 +3,14 @@
 //! of the verifier for three 576×320 views, next to the goal of 1 ms per tick). See
 //! `docs/rco.md`.
 
-use std::collections::BTreeMap;
-use std::io::{BufReader, Write as _};
+use std::io::BufReader;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use fogline_rco::{
-    Backend, Modules, OpenAiBackend, OpenAiParams, Rco, RcoParams, RulesBackend, Source, replay,
+    Backend, Modules, OpenAiBackend, OpenAiParams, Rco, RcoParams, RulesBackend, replay,
 };
 
 /// Arguments of `fogline rco`.
@@ -143,52 +142,11 @@ fn replay_cmd(a: ReplayArgs) -> Result<ExitCode> {
         rco.backend(),
         a.modules
     );
-    let mut out = std::io::stdout().lock();
-    let mut speeds: BTreeMap<&'static str, usize> = BTreeMap::new();
-    let mut sources: BTreeMap<&'static str, usize> = BTreeMap::new();
-    let mut last = None;
-    for obs in &observations {
-        let d = rco.step(obs);
-        if a.json {
-            writeln!(out, "{}", serde_json::to_string(&d)?)?;
-        } else {
-            writeln!(out, "{}", d.summary())?;
-        }
-        *speeds.entry(d.action.speed.name()).or_default() += 1;
-        let s = match d.source {
-            Source::Plan => "plan",
-            Source::Wait => "wait",
-            Source::Hold => "hold",
-            Source::Fallback => "fallback",
-        };
-        *sources.entry(s).or_default() += 1;
-        last = Some(d);
-    }
-    if let (false, Some(d)) = (a.json, last) {
-        let c = d.counters;
-        let n = observations.len();
-        writeln!(out)?;
-        writeln!(
-            out,
-            "{n} ticks: {} planning rounds, {} refusals, {} fallbacks; {} backend calls, {:.3} ms mean latency",
-            c.replans_total,
-            c.refusals_total,
-            c.fallbacks_total,
-            c.llm_calls_total,
-            if c.llm_calls_total > 0 {
-                c.llm_latency_ms_total / c.llm_calls_total as f64
-            } else {
-                0.0
-            }
-        )?;
-        let share = |m: &BTreeMap<&str, usize>| {
-            m.iter()
-                .map(|(k, v)| format!("{k} {:.0}%", 100.0 * *v as f64 / n as f64))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        writeln!(out, "sources: {}", share(&sources))?;
-        writeln!(out, "speed controls: {}", share(&speeds))?;
-    }
+    replay::run(
+        &mut rco,
+        &observations,
+        a.json,
+        &mut std::io::stdout().lock(),
+    )?;
     Ok(ExitCode::SUCCESS)
 }

@@ -43,3 +43,68 @@ pub fn to_jsonl(observations: &[Observation]) -> String {
     }
     s
 }
+
+/// Runs `observations` through `rco` and writes one line per tick (its summary, or the whole
+/// `Decision` as JSON with `json`), then a summary of the run: planning rounds, refusals,
+/// fallbacks, backend calls and latency, the share of each source and speed control. What
+/// `fogline rco replay` prints.
+pub fn run(
+    rco: &mut crate::Rco,
+    observations: &[Observation],
+    json: bool,
+    out: &mut dyn std::io::Write,
+) -> std::io::Result<()> {
+    use crate::Source;
+    use std::collections::BTreeMap;
+    let mut speeds: BTreeMap<&'static str, usize> = BTreeMap::new();
+    let mut sources: BTreeMap<&'static str, usize> = BTreeMap::new();
+    let mut last = None;
+    for obs in observations {
+        let d = rco.step(obs);
+        if json {
+            writeln!(
+                out,
+                "{}",
+                serde_json::to_string(&d).map_err(std::io::Error::other)?
+            )?;
+        } else {
+            writeln!(out, "{}", d.summary())?;
+        }
+        *speeds.entry(d.action.speed.name()).or_default() += 1;
+        let s = match d.source {
+            Source::Plan => "plan",
+            Source::Wait => "wait",
+            Source::Hold => "hold",
+            Source::Fallback => "fallback",
+        };
+        *sources.entry(s).or_default() += 1;
+        last = Some(d);
+    }
+    if let (false, Some(d)) = (json, last) {
+        let c = d.counters;
+        let n = observations.len();
+        writeln!(out)?;
+        writeln!(
+            out,
+            "{n} ticks: {} planning rounds, {} refusals, {} fallbacks; {} backend calls, {:.3} ms mean latency",
+            c.replans_total,
+            c.refusals_total,
+            c.fallbacks_total,
+            c.llm_calls_total,
+            if c.llm_calls_total > 0 {
+                c.llm_latency_ms_total / c.llm_calls_total as f64
+            } else {
+                0.0
+            }
+        )?;
+        let share = |m: &BTreeMap<&str, usize>| {
+            m.iter()
+                .map(|(k, v)| format!("{k} {:.0}%", 100.0 * *v as f64 / n as f64))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        writeln!(out, "sources: {}", share(&sources))?;
+        writeln!(out, "speed controls: {}", share(&speeds))?;
+    }
+    Ok(())
+}
