@@ -22,9 +22,6 @@ use std::time::Duration;
 
 use base64::Engine as _;
 use bytes::Bytes;
-use http_body_util::{BodyExt as _, Full, Limited};
-use hyper::header::{ACCEPT, AUTHORIZATION, CONTENT_TYPE, HOST};
-use hyper_util::rt::TokioIo;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use tokio::runtime::Runtime;
@@ -99,27 +96,20 @@ impl OpenAiBackend {
     /// API key from the environment now.
     pub fn new(params: OpenAiParams) -> Result<Self, RcoError> {
         let url = params.base_url.trim();
-        let Some(rest) = url.strip_prefix("http://") else {
-            return Err(RcoError::Backend(format!(
-                "base URL {url:?}: only http://host:port[/prefix] is supported (put an HTTPS API behind a local proxy)"
-            )));
-        };
-        let (authority, prefix) = match rest.find('/') {
-            Some(i) => (&rest[..i], rest[i..].trim_end_matches('/')),
-            None => (rest, ""),
-        };
-        if authority.is_empty() {
-            return Err(RcoError::Backend(format!("base URL {url:?} has no host")));
-        }
-        let prefix = prefix.strip_suffix("/v1").unwrap_or(prefix);
-        let authority = if authority
-            .rsplit_once(':')
-            .is_some_and(|(_, p)| p.parse::<u16>().is_ok())
-        {
-            authority.to_string()
-        } else {
-            format!("{authority}:80")
-        };
+        let base = fogline_io::http::BaseUrl::parse(url).map_err(|e| {
+            RcoError::Backend(match e {
+                fogline_io::http::BaseUrlError::NotHttp => format!(
+                    "base URL {url:?}: only http://host:port[/prefix] is supported (put an HTTPS API behind a local proxy)"
+                ),
+                fogline_io::http::BaseUrlError::NoHost => format!("base URL {url:?} has no host"),
+            })
+        })?;
+        let prefix = base
+            .prefix
+            .strip_suffix("/v1")
+            .unwrap_or(&base.prefix)
+            .to_string();
+        let authority = base.authority;
         if params.timeout_ms == 0 {
             return Err(RcoError::Backend("timeout_ms must be >= 1".into()));
         }
@@ -195,49 +185,18 @@ impl OpenAiBackend {
     }
 
     async fn post(&self, body: Vec<u8>) -> Result<(u16, Bytes), BackendError> {
-        let url = &self.params.base_url;
-        let unavailable = |reason: String| BackendError::Unavailable {
-            url: url.clone(),
-            reason,
-        };
-        let stream = tokio::net::TcpStream::connect(&self.authority)
-            .await
-            .map_err(|e| unavailable(format!("cannot connect: {e}")))?;
-        let _ = stream.set_nodelay(true);
-        let (mut sender, connection) = hyper::client::conn::http1::handshake(TokioIo::new(stream))
-            .await
-            .map_err(|e| unavailable(e.to_string()))?;
-        let driver = tokio::spawn(async move {
-            if let Err(e) = connection.await {
-                log::debug!("openai backend connection: {e}");
-            }
-        });
-        let mut req = hyper::Request::post(&self.path)
-            .header(HOST, &self.authority)
-            .header(CONTENT_TYPE, "application/json")
-            .header(ACCEPT, "application/json");
-        if let Some(key) = &self.api_key {
-            req = req.header(AUTHORIZATION, format!("Bearer {key}"));
-        }
-        let req = req
-            .body(Full::new(Bytes::from(body)))
-            .map_err(|e| BackendError::Protocol(format!("cannot build the request: {e}")))?;
-        let result = async {
-            let resp = sender
-                .send_request(req)
-                .await
-                .map_err(|e| unavailable(e.to_string()))?;
-            let status = resp.status().as_u16();
-            let body = Limited::new(resp.into_body(), MAX_REPLY_BYTES)
-                .collect()
-                .await
-                .map_err(|e| unavailable(format!("the reply cannot be read: {e}")))?
-                .to_bytes();
-            Ok((status, body))
-        }
-        .await;
-        driver.abort();
-        result
+        fogline_io::http::post_json(
+            &self.authority,
+            &self.path,
+            body,
+            self.api_key.as_deref(),
+            MAX_REPLY_BYTES,
+        )
+        .await
+        .map_err(|e| BackendError::Unavailable {
+            url: self.params.base_url.clone(),
+            reason: e.to_string(),
+        })
     }
 }
 

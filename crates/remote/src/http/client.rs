@@ -5,12 +5,8 @@ use std::time::Duration;
 use base64::Engine as _;
 use bytes::Bytes;
 use fogline_types::clip::{DT_S, Decision, HORIZON, PlannerOutput, Trajectory};
-use http_body_util::{BodyExt as _, Full, Limited};
 use hyper::StatusCode;
-use hyper::header::{ACCEPT, CONTENT_TYPE, HOST};
-use hyper_util::rt::TokioIo;
 use tokio::runtime::Runtime;
-use tokio::task::JoinHandle;
 
 use super::types::{CalibrationBody, CameraBody, ErrorBody, FrameBody, PlanBody};
 use super::{MAX_BODY_BYTES, PLAN_PATH};
@@ -67,30 +63,20 @@ impl Client {
     /// A client for `opts.url`; nothing is connected until the first call.
     pub fn new(opts: ClientOptions) -> Result<Self, PlanFailure> {
         let url = opts.url.trim();
-        let Some(rest) = url.strip_prefix("http://") else {
-            return Err(failure(
+        let base = fogline_io::http::BaseUrl::parse(url).map_err(|e| {
+            failure(
                 FailureKind::Input,
-                format!("planner URL {url:?}: only http://host:port[/prefix] is supported"),
-            ));
-        };
-        let (authority, prefix) = match rest.find('/') {
-            Some(i) => (&rest[..i], rest[i..].trim_end_matches('/')),
-            None => (rest, ""),
-        };
-        if authority.is_empty() {
-            return Err(failure(
-                FailureKind::Input,
-                format!("planner URL {url:?} has no host"),
-            ));
-        }
-        let authority = if authority
-            .rsplit_once(':')
-            .is_some_and(|(_, p)| p.parse::<u16>().is_ok())
-        {
-            authority.to_string()
-        } else {
-            format!("{authority}:80")
-        };
+                match e {
+                    fogline_io::http::BaseUrlError::NotHttp => {
+                        format!("planner URL {url:?}: only http://host:port[/prefix] is supported")
+                    }
+                    fogline_io::http::BaseUrlError::NoHost => {
+                        format!("planner URL {url:?} has no host")
+                    }
+                },
+            )
+        })?;
+        let (authority, prefix) = (base.authority, base.prefix);
         if opts.timeout.is_zero() {
             return Err(failure(
                 FailureKind::Input,
@@ -117,77 +103,30 @@ impl Client {
     }
 
     async fn post(&self, body: Vec<u8>) -> Result<(StatusCode, Bytes), PlanFailure> {
+        use fogline_io::http::PostError;
         let url = &self.opts.url;
-        let stream = tokio::net::TcpStream::connect(&self.authority)
-            .await
-            .map_err(|e| {
-                failure(
-                    FailureKind::Unavailable,
-                    format!("http planner at {url}: cannot connect: {e}"),
-                )
-            })?;
-        let _ = stream.set_nodelay(true);
-        let (mut sender, connection) = hyper::client::conn::http1::handshake(TokioIo::new(stream))
-            .await
-            .map_err(|e| hyper_failure(url, &e))?;
-        let _driver = AbortOnDrop(tokio::spawn(async move {
-            if let Err(e) = connection.await {
-                log::debug!("http client connection: {e}");
-            }
-        }));
-        let request = hyper::Request::post(format!("{}{PLAN_PATH}", self.prefix))
-            .header(HOST, &self.authority)
-            .header(CONTENT_TYPE, "application/json")
-            .header(ACCEPT, "application/json")
-            .body(Full::new(Bytes::from(body)))
-            .map_err(|e| failure(FailureKind::Input, format!("cannot build the request: {e}")))?;
-        let response = sender
-            .send_request(request)
-            .await
-            .map_err(|e| hyper_failure(url, &e))?;
-        let status = response.status();
-        let body = Limited::new(response.into_body(), MAX_BODY_BYTES)
-            .collect()
-            .await
-            .map_err(|e| match e.downcast::<hyper::Error>() {
-                Ok(e) => hyper_failure(url, &e),
-                Err(e) => failure(
-                    FailureKind::InvalidAnswer,
-                    format!("http planner at {url}: the answer cannot be read: {e}"),
-                ),
-            })?
-            .to_bytes();
+        let path = format!("{}{PLAN_PATH}", self.prefix);
+        let (status, body) =
+            fogline_io::http::post_json(&self.authority, &path, body, None, MAX_BODY_BYTES)
+                .await
+                .map_err(|e| {
+                    let kind = match e {
+                        PostError::Connect(_) | PostError::Connection(_) => {
+                            FailureKind::Unavailable
+                        }
+                        PostError::NotHttp(_) | PostError::Body(_) => FailureKind::InvalidAnswer,
+                        PostError::Timeout(_) => FailureKind::Timeout,
+                        PostError::Request(_) => FailureKind::Input,
+                    };
+                    failure(kind, format!("http planner at {url}: {e}"))
+                })?;
+        let status = StatusCode::from_u16(status).map_err(|e| {
+            failure(
+                FailureKind::InvalidAnswer,
+                format!("http planner at {url}: status {status}: {e}"),
+            )
+        })?;
         Ok((status, body))
-    }
-}
-
-/// Aborts a spawned task when dropped (a call that timed out leaves no task behind).
-struct AbortOnDrop(JoinHandle<()>);
-
-impl Drop for AbortOnDrop {
-    fn drop(&mut self) {
-        self.0.abort();
-    }
-}
-
-fn hyper_failure(url: &str, e: &hyper::Error) -> PlanFailure {
-    if e.is_parse() || e.is_parse_status() || e.is_parse_too_large() {
-        failure(
-            FailureKind::InvalidAnswer,
-            format!("http planner at {url}: not an HTTP answer: {e}"),
-        )
-    } else if e.is_timeout() {
-        failure(FailureKind::Timeout, format!("http planner at {url}: {e}"))
-    } else {
-        let cause = std::error::Error::source(e)
-            .map(|s| format!(": {s}"))
-            .unwrap_or_default();
-        failure(
-            FailureKind::Unavailable,
-            format!(
-                "http planner at {url}: the connection failed before a complete answer: {e}{cause}"
-            ),
-        )
     }
 }
 
