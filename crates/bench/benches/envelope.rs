@@ -348,7 +348,7 @@ fn large(dir: &Path) {
     let an = secs(t);
     let peak = peak_rss_mb();
     let chosen_k = env.severity.chosen_k;
-    let bootstrap_method = env.bootstrap_method;
+    let bootstrap_method = env.bootstrap_method.clone();
     drop(env);
     let _ = std::fs::remove_file(&csv);
     let mb = |v: Option<f64>| v.map_or("n/a".to_string(), |m| format!("{m:.0} MB"));

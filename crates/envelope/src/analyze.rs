@@ -255,10 +255,10 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
                 });
                 thresholds.push(Threshold {
                     scenario: groups.names[g].clone(),
-                    kind: if g < g_clf { "scenario" } else { "aggregate" },
+                    kind: if g < g_clf { "scenario" } else { "aggregate" }.into(),
                     axis: a.axis.clone(),
                     budget: b,
-                    rule: p.rule.name(),
+                    rule: p.rule.name().into(),
                     n_clips: group_clips[g],
                     sigma_star: level_of(ai, o),
                     right_censored: o.censored,
@@ -372,7 +372,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
                     defined: false,
                     reason: Some(reason.clone()),
                     n_changed: l2_changed.len(),
-                    bands_mode: bands_mode(p),
+                    bands_mode: bands_mode(p).into(),
                     bic: Vec::new(),
                     chosen_per_seed: Vec::new(),
                     chosen_k: None,
@@ -690,7 +690,8 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             (0, _) => "none",
             (_, threshold::Resampling::Multinomial) => "multinomial",
             (_, threshold::Resampling::Poisson) => "poisson",
-        },
+        }
+        .into(),
         conventions,
         corpus: Corpus {
             n_pairs: t.len(),
@@ -785,7 +786,7 @@ fn severity_from(sel: &gmm::Selection, x: &[f64], p: &EnvelopeParams) -> (Severi
             defined: true,
             reason: None,
             n_changed: x.len(),
-            bands_mode: bands_mode(p),
+            bands_mode: bands_mode(p).into(),
             bic,
             chosen_per_seed: sel.chosen_per_restart.clone(),
             chosen_k: Some(sel.chosen_k),

@@ -121,28 +121,28 @@ pub(crate) fn build(
         strategy: "Argue over a two-dimensional envelope: a triggering-condition bound (Clause 7.3) paired with a residual-risk acceptance criterion (Clause 6.5).".into(),
         nodes: vec![
             EvidenceNode {
-                id: "E1",
-                clause: "5.2, 7.3",
+                id: "E1".into(),
+                clause: "5.2, 7.3".into(),
                 text: format!("per-scenario σ*(s) at the {:.0}% ADE budget with bootstrap 95% CI: {e1}", 100.0 * b),
             },
             EvidenceNode {
-                id: "E2",
-                clause: "6.4",
+                id: "E2".into(),
+                clause: "6.4".into(),
                 text: e2,
             },
             EvidenceNode {
-                id: "E3",
-                clause: "6.5, 12",
+                id: "E3".into(),
+                clause: "6.5, 12".into(),
                 text: e3,
             },
             EvidenceNode {
-                id: "A1",
-                clause: "assumption",
+                id: "A1".into(),
+                clause: "assumption".into(),
                 text: a1,
             },
             EvidenceNode {
-                id: "A2",
-                clause: "assumption",
+                id: "A2".into(),
+                clause: "assumption".into(),
                 text: "the high-severity bands are a proxy for downstream severity pending a collision or rule-violation tie-in; choosing π* from a target societal risk level is out of scope".into(),
             },
         ],

@@ -41,7 +41,7 @@ pub struct ReadOptions {
 }
 
 /// The file formats a pairs table can come in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Format {
     /// Comma-separated values with a header row.
@@ -84,7 +84,7 @@ impl Format {
 }
 
 /// Where the table came from.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct InputInfo {
     /// The file as given.
     pub path: String,
@@ -97,7 +97,7 @@ pub struct InputInfo {
 }
 
 /// A condition found in the table.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ConditionInfo {
     /// Name as written.
     pub name: String,

@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::input::{ConditionInfo, InputInfo};
 use crate::params::EnvelopeParams;
@@ -18,7 +18,7 @@ pub const AGG_CLASSIFIED: &str = "AGGREGATE_CLASSIFIED";
 pub const AGG_ALL: &str = "AGGREGATE_ALL";
 
 /// The whole envelope.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Envelope {
     /// Schema version ([`SCHEMA_VERSION`]).
     pub schema_version: u32,
@@ -29,7 +29,7 @@ pub struct Envelope {
     /// The parameters used.
     pub parameters: EnvelopeParams,
     /// The bootstrap resampling actually used (`multinomial`, `poisson`, or `none`).
-    pub bootstrap_method: &'static str,
+    pub bootstrap_method: String,
     /// Every convention the paper leaves open, as chosen here.
     pub conventions: BTreeMap<String, String>,
     /// What the corpus holds.
@@ -61,7 +61,7 @@ pub struct Envelope {
 }
 
 /// Corpus summary (table 1).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Corpus {
     /// Pairs (rows).
     pub n_pairs: usize,
@@ -84,7 +84,7 @@ pub struct Corpus {
 }
 
 /// One scenario label's summary.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ScenarioSummary {
     /// Label.
     pub scenario: String,
@@ -107,7 +107,7 @@ pub struct ScenarioSummary {
 }
 
 /// An ordered severity axis.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Axis {
     /// Axis name (`gaussian_noise`, `fog`, `darken`, `brighten`, or a user family).
     pub axis: String,
@@ -120,7 +120,7 @@ pub struct Axis {
 }
 
 /// One point of a dose-response curve.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct DosePoint {
     /// Scenario or aggregate.
     pub scenario: String,
@@ -145,7 +145,7 @@ pub struct DosePoint {
 }
 
 /// One cell of the scenario × condition ΔADE map.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MapCell {
     /// Scenario label or aggregate.
     pub scenario: String,
@@ -158,7 +158,7 @@ pub struct MapCell {
 }
 
 /// Position of a scenario's threshold relative to the aggregate's.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum VsAggregate {
     /// Fails at a smaller level than the aggregate.
@@ -170,18 +170,18 @@ pub enum VsAggregate {
 }
 
 /// One threshold σ*(s) with its bootstrap.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Threshold {
     /// Scenario or aggregate.
     pub scenario: String,
     /// `scenario` or `aggregate`.
-    pub kind: &'static str,
+    pub kind: String,
     /// Axis.
     pub axis: String,
     /// Budget b.
     pub budget: f64,
     /// Rule name.
-    pub rule: &'static str,
+    pub rule: String,
     /// Clips in the group.
     pub n_clips: usize,
     /// The threshold level; None = "none" (the smallest level already fails).
@@ -200,7 +200,7 @@ pub struct Threshold {
 }
 
 /// One row of the BIC table.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct BicRow {
     /// Number of components.
     pub k: usize,
@@ -217,7 +217,7 @@ pub struct BicRow {
 }
 
 /// One row of the cross-validation table.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct CvRow {
     /// Number of components.
     pub k: usize,
@@ -230,7 +230,7 @@ pub struct CvRow {
 }
 
 /// A severity band.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Band {
     /// `C0`, `C1`, … by increasing mean.
     pub name: String,
@@ -247,7 +247,7 @@ pub struct Band {
 }
 
 /// Per-scenario mixture choice.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ScenarioMixture {
     /// Scenario.
     pub scenario: String,
@@ -262,7 +262,7 @@ pub struct ScenarioMixture {
 }
 
 /// The GMM severity analysis of changed pairs.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Severity {
     /// Whether a mixture could be fitted.
     pub defined: bool,
@@ -271,7 +271,7 @@ pub struct Severity {
     /// Changed pairs.
     pub n_changed: usize,
     /// `auto` or `fixed`.
-    pub bands_mode: &'static str,
+    pub bands_mode: String,
     /// BIC table.
     pub bic: Vec<BicRow>,
     /// The BIC-optimal k of each restart seed (seed index order).
@@ -291,7 +291,7 @@ pub struct Severity {
 }
 
 /// High-severity share of one group.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct HighRow {
     /// Scenario, aggregate or condition.
     pub group: String,
@@ -306,7 +306,7 @@ pub struct HighRow {
 }
 
 /// High-severity shares.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct HighSeverity {
     /// Which bands count as high.
     pub bands: Vec<String>,
@@ -317,7 +317,7 @@ pub struct HighSeverity {
 }
 
 /// Joint scenario × band distribution.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Joint {
     /// Rows.
     pub scenarios: Vec<String>,
@@ -334,7 +334,7 @@ pub struct Joint {
 pub use fogline_types::odd::OddEntry;
 
 /// A correlation with its p-value.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct Corr {
     /// Coefficient.
     pub r: f64,
@@ -345,7 +345,7 @@ pub struct Corr {
 }
 
 /// The Mann–Whitney comparison of complete rewrites vs mid-range edits.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MwuOut {
     /// U of the low-Jaccard group.
     pub u: f64,
@@ -366,7 +366,7 @@ pub struct MwuOut {
 }
 
 /// χ² test of independence.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Chi2Out {
     /// Statistic.
     pub statistic: f64,
@@ -377,7 +377,7 @@ pub struct Chi2Out {
 }
 
 /// Intraclass correlations of per-clip flip flags across conditions.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct IccOut {
     /// ICC(2,1).
     pub icc2_1: f64,
@@ -390,7 +390,7 @@ pub struct IccOut {
 }
 
 /// The paper's statistics.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Statistics {
     /// Pairs.
     pub n_pairs: usize,
@@ -437,7 +437,7 @@ pub struct Statistics {
 }
 
 /// Diagonal share of one action's row.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ActionDiagonal {
     /// Action of the clean CoC.
     pub action: String,
@@ -448,7 +448,7 @@ pub struct ActionDiagonal {
 }
 
 /// The action transition matrix.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Transitions {
     /// Action labels (rows: clean, columns: perturbed).
     pub labels: Vec<String>,
@@ -463,18 +463,18 @@ pub struct Transitions {
 }
 
 /// One evidence node of the assurance argument.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct EvidenceNode {
     /// E1, E2, E3, A1, A2.
-    pub id: &'static str,
+    pub id: String,
     /// ISO 21448:2022 clause(s).
-    pub clause: &'static str,
+    pub clause: String,
     /// The claim, filled from the numbers.
     pub text: String,
 }
 
 /// Threshold under budget ±sensitivity (assumption A1).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Sensitivity {
     /// Scenario or aggregate.
     pub scenario: String,
@@ -489,7 +489,7 @@ pub struct Sensitivity {
 }
 
 /// The ISO 21448 assurance mapping (table 5).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Assurance {
     /// Goal.
     pub goal: String,
@@ -508,6 +508,32 @@ pub(crate) fn finite(x: f64) -> Option<f64> {
 }
 
 impl Envelope {
+    /// Reads an `envelope.json` back into the model that wrote it (`name` stands for the file
+    /// in errors): its schema version first, then every field (serde's message names the
+    /// field, line and column). The round trip is exact: floats parse bit for bit.
+    pub fn from_json(text: &str, name: &str) -> crate::Result<Self> {
+        let bad = |detail: String| crate::EnvelopeError::NotFormat {
+            path: name.into(),
+            expected: "envelope.json",
+            detail,
+        };
+        #[derive(Deserialize)]
+        struct Head {
+            schema_version: Option<u32>,
+        }
+        let head: Head = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        match head.schema_version {
+            Some(SCHEMA_VERSION) => {}
+            Some(v) => {
+                return Err(bad(format!(
+                    "schema_version {v} is not supported (this build reads {SCHEMA_VERSION})"
+                )));
+            }
+            None => return Err(bad("no schema_version field".into())),
+        }
+        serde_json::from_str(text).map_err(|e| bad(e.to_string()))
+    }
+
     /// The ODD specification a runtime monitor loads (`odd.json`): the headline budget's
     /// entries with what they were computed under.
     pub fn odd_spec(&self) -> fogline_types::odd::OddSpec {
