@@ -111,21 +111,21 @@ pub fn run(job: &DemoJob) -> Result<DemoOutcome> {
         table.len(),
         t1.elapsed().as_secs_f64()
     );
-    let written = write_outputs(&envelope, &table, &job.out, None)?;
+    // The closed loop: the quick suite, no deficit and each deficit with and without the
+    // override; it runs before the files are written so the report is written once, with it.
     let closed_loop = if job.closed_loop {
-        // The closed loop: the quick suite, no deficit and each deficit with and without
-        // the override; its table joins the report.
         let dir = job.out.join("closed-loop");
         let t2 = Instant::now();
         log::info!(
             "demo: the quick closed loop (2 towns x 2 routes; no deficit, each deficit with and without RCO)"
         );
         let results = quick_closed_loop(job.seed, &dir)?;
-        crate::envelope::write_report(&envelope, Some(&table), Some(&dir), &written.report)?;
         Some((results, dir, t2.elapsed().as_secs_f64()))
     } else {
         None
     };
+    let sim_dir = closed_loop.as_ref().map(|(_, dir, _)| dir.as_path());
+    let written = write_outputs(&envelope, &table, &job.out, sim_dir)?;
     Ok(DemoOutcome {
         store,
         run,

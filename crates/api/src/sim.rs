@@ -50,7 +50,6 @@ pub fn write_summary(
     json: bool,
     out: &mut dyn Write,
 ) -> Result<()> {
-    let stdout = out;
     if json {
         let doc = serde_json::json!({
             "summary": results.summary,
@@ -64,25 +63,20 @@ pub fn write_summary(
                 "closed_loop": written.closed_loop,
             },
         });
-        writeln!(stdout, "{}", serde_json::to_string_pretty(&doc)?)?;
+        writeln!(out, "{}", serde_json::to_string_pretty(&doc)?)?;
         return Ok(());
     }
-    write!(stdout, "{}", markdown(results))?;
+    write!(out, "{}", markdown(results))?;
     // The speed goal: the full suite's deficit runs (36 routes × 4 deficits × with/without
     // RCO, one seed) within 10 minutes on two cores.
     let deficit_runs = results
         .records
         .iter()
-        .filter(|r| {
-            params
-                .configs
-                .iter()
-                .any(|c| c.name == r.config && c.deficit.is_some())
-        })
+        .filter(|r| params.is_deficit_run(r))
         .count();
     let elapsed_deficit = results.summary.deficit_runs_wall_s / results.threads.max(1) as f64;
     writeln!(
-        stdout,
+        out,
         "\nfogline sim run: {} runs in {:.1} s ({} thread(s)); {} deficit runs: {:.1} s of worker time, about {:.1} s elapsed (goal for the full suite, 288 runs on 2 cores: <= 600 s{})",
         results.records.len(),
         results.wall_s,
@@ -101,10 +95,10 @@ pub fn write_summary(
         }
     )?;
     for w in &results.warnings {
-        writeln!(stdout, "warning: {w}")?;
+        writeln!(out, "warning: {w}")?;
     }
     writeln!(
-        stdout,
+        out,
         "wrote {}, {}, {}, {}",
         written.tables.display(),
         written.results.display(),

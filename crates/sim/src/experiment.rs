@@ -40,6 +40,14 @@ pub struct ExperimentParams {
 }
 
 impl ExperimentParams {
+    /// Whether `record` ran under a configuration with a deficit (the runs the suite's speed
+    /// goal counts).
+    pub fn is_deficit_run(&self, record: &RouteRecord) -> bool {
+        self.configs
+            .iter()
+            .any(|c| c.name == record.config && c.deficit.is_some())
+    }
+
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), SimError> {
         self.suite.validate()?;
@@ -554,12 +562,7 @@ impl Summary {
         }
         let deficit_runs_wall_s = records
             .iter()
-            .filter(|r| {
-                params
-                    .configs
-                    .iter()
-                    .any(|c| c.name == r.config && c.deficit.is_some())
-            })
+            .filter(|r| params.is_deficit_run(r))
             .map(|r| r.wall_s)
             // (`sum` of no values is −0.0, which prints as "-0.0")
             .fold(0.0, |a, b| a + b);

@@ -11,8 +11,9 @@
 //!
 //! let spec = OddSpec::new("fogline 0.1.0", "ab12", Some("gaussian_noise".into()), 0.15, "first-violation");
 //! let text = spec.to_json();
-//! assert_eq!(OddSpec::from_json(&text).unwrap(), spec);
+//! assert_eq!(OddSpec::from_json(&text)?, spec);
 //! assert!(OddSpec::from_json("{\"kind\": \"something.else\"}").is_err());
+//! # Ok::<(), fogline_types::odd::OddError>(())
 //! ```
 
 use serde::{Deserialize, Serialize};
