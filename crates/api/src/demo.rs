@@ -10,7 +10,7 @@ use anyhow::{Context, Result, bail};
 use fogline_campaign::export::{ExportSummary, Formats};
 use fogline_campaign::{CampaignConfig, RunSummary, Shard};
 use fogline_envelope::{Envelope, EnvelopeParams, PairTable, ReadOptions};
-use fogline_io::write_atomic;
+use fogline_io::{FileSet, write_atomic};
 use fogline_sim::config::{BackendSetup, ConfigSet, configs};
 use fogline_sim::experiment::{ExperimentParams, Results, run_experiment};
 use fogline_sim::output::write_all;
@@ -64,6 +64,75 @@ pub fn run(job: &DemoJob) -> Result<DemoOutcome> {
     let t = Instant::now();
     std::fs::create_dir_all(&job.out)
         .with_context(|| format!("cannot create {}", job.out.display()))?;
+    // Everything is made in a staging directory inside `out` and moved into place as one
+    // set at the end: a demo that fails or is killed leaves the previous demo's files whole.
+    let staging = job.out.join(".fogline-demo.staging");
+    if staging.exists() {
+        std::fs::remove_dir_all(&staging)
+            .with_context(|| format!("cannot remove {}", staging.display()))?;
+    }
+    std::fs::create_dir_all(&staging)
+        .with_context(|| format!("cannot create {}", staging.display()))?;
+    let made = make(job, &staging);
+    let (run, exported, table, envelope, written, closed_loop) = match made {
+        Ok(m) => m,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&staging);
+            return Err(e);
+        }
+    };
+    // The previous demo's store may have left its write-ahead log beside it (a killed run):
+    // it must not be paired with the new store.
+    let store = job.out.join("campaign.sqlite");
+    for suffix in ["-wal", "-shm"] {
+        let p = PathBuf::from(format!("{}{suffix}", store.display()));
+        if p.exists() {
+            std::fs::remove_file(&p).with_context(|| format!("cannot remove {}", p.display()))?;
+        }
+    }
+    let mut set = FileSet::new();
+    set.adopt_dir(&staging, &job.out)?;
+    set.commit()?;
+    let _ = std::fs::remove_dir_all(&staging);
+    // Every path reported is the committed one.
+    let moved = |p: &Path| match p.strip_prefix(&staging) {
+        Ok(rel) => job.out.join(rel),
+        Err(_) => p.to_path_buf(),
+    };
+    let exported = ExportSummary {
+        files: exported.files.iter().map(|p| moved(p)).collect(),
+        ..exported
+    };
+    let written = Written {
+        json: moved(&written.json),
+        markdown: moved(&written.markdown),
+        odd: moved(&written.odd),
+        report: moved(&written.report),
+    };
+    Ok(DemoOutcome {
+        store,
+        run,
+        exported,
+        table,
+        envelope,
+        written,
+        closed_loop: closed_loop.map(|(r, dir, secs)| (r, moved(&dir), secs)),
+        seconds: t.elapsed().as_secs_f64(),
+        out: job.out.clone(),
+    })
+}
+
+/// What the demo makes in `dir` before it is committed.
+type Made = (
+    RunSummary,
+    ExportSummary,
+    PairTable,
+    Envelope,
+    Written,
+    Option<(Results, PathBuf, f64)>,
+);
+
+fn make(job: &DemoJob, dir: &Path) -> Result<Made> {
     // The campaign: the paper's eight conditions + clean on a synthetic corpus, the
     // reference planner in-process.
     let config_text = format!(
@@ -73,15 +142,8 @@ pub fn run(job: &DemoJob) -> Result<DemoOutcome> {
         job.clips, job.seed
     );
     let config = CampaignConfig::from_toml(&config_text)?;
-    write_atomic(&job.out.join("campaign.toml"), config_text.as_bytes())?;
-    // The demo owns its store: start it afresh.
-    let store = job.out.join("campaign.sqlite");
-    for suffix in ["", "-wal", "-shm"] {
-        let p = PathBuf::from(format!("{}{suffix}", store.display()));
-        if p.exists() {
-            std::fs::remove_file(&p).with_context(|| format!("cannot remove {}", p.display()))?;
-        }
-    }
+    write_atomic(&dir.join("campaign.toml"), config_text.as_bytes())?;
+    let store = dir.join("campaign.sqlite");
     log::info!(
         "demo: {} synthetic clips × 9 conditions with the reference planner",
         job.clips
@@ -90,14 +152,16 @@ pub fn run(job: &DemoJob) -> Result<DemoOutcome> {
     let runs = fogline_campaign::Store::open(&store)?.runs()?;
     let exported = fogline_campaign::export::export(
         &runs,
-        &job.out,
+        dir,
         Formats {
             csv: true,
             parquet: true,
         },
         false,
     )?;
-    let table = fogline_envelope::read_pairs(&job.out.join("pairs.csv"), &ReadOptions::default())?;
+    let mut table = fogline_envelope::read_pairs(&dir.join("pairs.csv"), &ReadOptions::default())?;
+    // The envelope names the table where it will be, once committed.
+    table.input.path = job.out.join("pairs.csv").display().to_string();
     let t1 = Instant::now();
     let envelope = fogline_envelope::analyze(
         &table,
@@ -114,29 +178,19 @@ pub fn run(job: &DemoJob) -> Result<DemoOutcome> {
     // The closed loop: the quick suite, no deficit and each deficit with and without the
     // override; it runs before the files are written so the report is written once, with it.
     let closed_loop = if job.closed_loop {
-        let dir = job.out.join("closed-loop");
+        let sim_dir = dir.join("closed-loop");
         let t2 = Instant::now();
         log::info!(
             "demo: the quick closed loop (2 towns x 2 routes; no deficit, each deficit with and without RCO)"
         );
-        let results = quick_closed_loop(job.seed, &dir)?;
-        Some((results, dir, t2.elapsed().as_secs_f64()))
+        let results = quick_closed_loop(job.seed, &sim_dir)?;
+        Some((results, sim_dir, t2.elapsed().as_secs_f64()))
     } else {
         None
     };
-    let sim_dir = closed_loop.as_ref().map(|(_, dir, _)| dir.as_path());
-    let written = write_outputs(&envelope, &table, &job.out, sim_dir)?;
-    Ok(DemoOutcome {
-        store,
-        run,
-        exported,
-        table,
-        envelope,
-        written,
-        closed_loop,
-        seconds: t.elapsed().as_secs_f64(),
-        out: job.out.clone(),
-    })
+    let sim_dir = closed_loop.as_ref().map(|(_, d, _)| d.as_path());
+    let written = write_outputs(&envelope, &table, dir, sim_dir)?;
+    Ok((run, exported, table, envelope, written, closed_loop))
 }
 
 impl DemoOutcome {

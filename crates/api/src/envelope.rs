@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use fogline_envelope::{Envelope, PairTable, ReadOptions};
-use fogline_io::write_atomic;
+use fogline_io::{FileSet, write_atomic};
 use fogline_report::{ClosedLoop, ReportInput, ReportParams};
 
 /// Reads the pairs table at `pairs` and analyses it with `params` (a `Given` taxonomy
@@ -73,10 +73,14 @@ pub fn write_outputs(
         odd: dir.join("odd.json"),
         report: dir.join("report.html"),
     };
-    write_atomic(&w.json, &json)?;
-    write_atomic(&w.markdown, md.as_bytes())?;
-    write_atomic(&w.odd, odd.as_bytes())?;
-    write_report(env, Some(table), sim_dir, &w.report)?;
+    let html = render_report(env, Some(table), sim_dir)?;
+    // One set: a failure anywhere leaves the previous four files in place.
+    let mut set = FileSet::new();
+    set.write(&w.json, &json)?;
+    set.write(&w.markdown, md.as_bytes())?;
+    set.write(&w.odd, odd.as_bytes())?;
+    set.write(&w.report, html.as_bytes())?;
+    set.commit()?;
     Ok(w)
 }
 
@@ -88,6 +92,16 @@ pub fn write_report(
     sim_dir: Option<&Path>,
     out: &Path,
 ) -> Result<()> {
+    let html = render_report(envelope, pairs, sim_dir)?;
+    check_dir(out)?;
+    Ok(write_atomic(out, html.as_bytes())?)
+}
+
+fn render_report(
+    envelope: &Envelope,
+    pairs: Option<&PairTable>,
+    sim_dir: Option<&Path>,
+) -> Result<String> {
     let mut input = ReportInput::from_envelope(envelope)?;
     if let Some(t) = pairs {
         input = input.with_pairs(t)?;
@@ -95,7 +109,7 @@ pub fn write_report(
     if let Some(dir) = sim_dir {
         input = input.with_closed_loop(read_closed_loop(dir)?)?;
     }
-    write_input(&input, &ReportParams::default(), out)
+    render_input(&input, &ReportParams::default())
 }
 
 /// The summary `fogline envelope` prints: the corpus, the aggregate threshold, the ODD entry
@@ -207,7 +221,9 @@ pub fn report_dir(job: &ReportJob) -> Result<PathBuf> {
         .out
         .clone()
         .unwrap_or_else(|| job.envelope_dir.join("report.html"));
-    write_input(&input, &params, &out)?;
+    let html = render_input(&input, &params)?;
+    check_dir(&out)?;
+    write_atomic(&out, html.as_bytes())?;
     Ok(out)
 }
 
@@ -225,7 +241,7 @@ fn read_closed_loop(dir: &Path) -> Result<ClosedLoop> {
     )?)
 }
 
-fn write_input(input: &ReportInput, params: &ReportParams, out: &Path) -> Result<()> {
+fn render_input(input: &ReportInput, params: &ReportParams) -> Result<String> {
     let report = fogline_report::render(input, params)?;
     for f in report.figures.iter().filter(|f| !f.drawn) {
         log::info!(
@@ -234,6 +250,11 @@ fn write_input(input: &ReportInput, params: &ReportParams, out: &Path) -> Result
             f.title
         );
     }
+    Ok(report.html)
+}
+
+/// An early, clear error when `out`'s directory does not exist.
+fn check_dir(out: &Path) -> Result<()> {
     let dir = match out.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -245,7 +266,7 @@ fn write_input(input: &ReportInput, params: &ReportParams, out: &Path) -> Result
             dir.display()
         );
     }
-    Ok(write_atomic(out, report.html.as_bytes())?)
+    Ok(())
 }
 
 /// The pairs table behind the L2 histogram: the one given, else the one `envelope.json`

@@ -386,34 +386,45 @@ pub fn export(
         tables.push((name, t));
         summary.pairs.push((seed, counts));
     }
+    // One set: the tables of one export are replaced together or not at all.
+    let mut set = fogline_io::FileSet::new();
     for (name, table) in &tables {
         if formats.csv {
             let p = dir.join(format!("{name}.csv"));
-            write_atomic(&p, |w| table.write_csv(w))?;
+            stage(&mut set, &p, |w| table.write_csv(w))?;
             summary.files.push(p);
         }
         if formats.parquet {
             let p = dir.join(format!("{name}.parquet"));
-            write_atomic(&p, |w| table.write_parquet(w))?;
+            stage(&mut set, &p, |w| table.write_parquet(w))?;
             summary.files.push(p);
         }
     }
+    set.commit().map_err(|e| export_err(dir, &e))?;
     Ok(summary)
 }
 
-/// Writes `path` through a temporary file in the same directory and a rename, so a reader
-/// never sees half a file and a failure leaves the previous file in place.
-pub fn write_atomic(
+/// Stages `path`'s content in `set` (see [`fogline_io::FileSet`]).
+fn stage(
+    set: &mut fogline_io::FileSet,
     path: &Path,
     fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), String>,
 ) -> Result<(), CampaignError> {
-    fogline_io::write_atomic_with(path, |w| fill(w).map_err(std::io::Error::other)).map_err(|e| {
-        CampaignError::Export {
-            path: path.to_path_buf(),
-            reason: fogline_io::atomic::WriteError::of(&e)
-                .map_or_else(|| e.to_string(), |w| w.source.to_string()),
-        }
-    })
+    set.write_with(path, |w| fill(w).map_err(std::io::Error::other))
+        .map_err(|e| export_err(path, &e))
+}
+
+fn export_err(fallback: &Path, e: &std::io::Error) -> CampaignError {
+    match fogline_io::atomic::WriteError::of(e) {
+        Some(w) => CampaignError::Export {
+            path: w.path.clone(),
+            reason: w.source.to_string(),
+        },
+        None => CampaignError::Export {
+            path: fallback.to_path_buf(),
+            reason: e.to_string(),
+        },
+    }
 }
 
 impl ExportSummary {

@@ -219,12 +219,51 @@ impl Store {
                 source: e,
             })?;
         }
+        // The store is made whole under a temporary name and renamed into place, so a kill
+        // during creation never leaves a file at `path` that later runs refuse: a killed
+        // creation leaves only the temporary, which the next one replaces.
+        let name = path
+            .file_name()
+            .map_or_else(|| "store".into(), |n| n.to_string_lossy());
+        let tmp = path.with_file_name(format!(".{name}.creating"));
+        for suffix in ["", "-journal", "-wal", "-shm"] {
+            let p = PathBuf::from(format!("{}{suffix}", tmp.display()));
+            match std::fs::remove_file(&p) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(CampaignError::Io { path: p, source: e });
+                }
+                _ => {}
+            }
+        }
+        Self::write_new(&tmp, meta)?;
+        std::fs::rename(&tmp, path).map_err(|e| CampaignError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        #[cfg(unix)]
+        if let Some(dir) = path.parent()
+            && let Ok(d) = std::fs::File::open(if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            })
+        {
+            let _ = d.sync_all();
+        }
+        // Read back as any later run reads it.
+        Self::open(path)
+    }
+
+    /// Writes a complete new store (schema and metadata, rollback journal, synced) at `path`
+    /// and closes it.
+    fn write_new(path: &Path, meta: &StoreMeta) -> Result<(), CampaignError> {
         let mut conn = Connection::open_with_flags(
             path,
             OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_CREATE,
         )
         .map_err(Self::sqlite(path))?;
-        Self::pragmas(&conn, path)?;
+        conn.pragma_update(None, "synchronous", "FULL")
+            .map_err(Self::sqlite(path))?;
         let tx = conn.transaction().map_err(Self::sqlite(path))?;
         tx.execute_batch(SCHEMA).map_err(Self::sqlite(path))?;
         let merged = meta
@@ -251,11 +290,8 @@ impl Store {
             .map_err(Self::sqlite(path))?;
         }
         tx.commit().map_err(Self::sqlite(path))?;
-        Ok(Self {
-            conn,
-            path: path.to_path_buf(),
-            meta: meta.clone(),
-        })
+        conn.close().map_err(|(_, e)| Self::sqlite(path)(e))?;
+        Ok(())
     }
 
     /// Opens an existing store.

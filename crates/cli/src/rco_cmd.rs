@@ -131,7 +131,7 @@ fn replay_cmd(a: ReplayArgs) -> Result<ExitCode> {
                 timeout_ms: a.timeout_ms,
                 ..OpenAiParams::default()
             })
-            .context("--backend openai")?,
+            .with_context(|| format!("--backend openai --url {}", a.url))?,
         ),
     };
     let mut rco = Rco::new(params, backend).context("invalid controller settings")?;
@@ -142,11 +142,20 @@ fn replay_cmd(a: ReplayArgs) -> Result<ExitCode> {
         rco.backend(),
         a.modules
     );
-    replay::run(
+    let replayed = replay::run(
         &mut rco,
         &observations,
         a.json,
         &mut std::io::stdout().lock(),
     )?;
+    if replayed.all_fell_back() {
+        eprintln!(
+            "error: all {} ticks fell back to the safe default: {} never gave a usable answer \
+             (run with -v to see why)",
+            replayed.ticks,
+            rco.backend()
+        );
+        return Ok(ExitCode::from(1));
+    }
     Ok(ExitCode::SUCCESS)
 }

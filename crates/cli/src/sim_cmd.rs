@@ -164,13 +164,18 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     };
     let backend = match a.backend {
         BackendArg::Rules => BackendSetup::Rules,
-        BackendArg::Openai => BackendSetup::Openai(OpenAiParams {
-            base_url: a.url.clone(),
-            model: a.model.clone(),
-            api_key_env: a.api_key_env.clone(),
-            timeout_ms: a.timeout_ms,
-            ..OpenAiParams::default()
-        }),
+        BackendArg::Openai => {
+            let p = OpenAiParams {
+                base_url: a.url.clone(),
+                model: a.model.clone(),
+                api_key_env: a.api_key_env.clone(),
+                timeout_ms: a.timeout_ms,
+                ..OpenAiParams::default()
+            };
+            p.parsed_url()
+                .with_context(|| format!("--backend openai --url {}", a.url))?;
+            BackendSetup::Openai(p)
+        }
     };
     let mut run_params = RunParams {
         stop_sign_penalty: a.stop_sign_penalty,

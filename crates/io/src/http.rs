@@ -19,16 +19,42 @@ pub struct BaseUrl {
 }
 
 /// Why a base URL was refused.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum BaseUrlError {
     /// Not `http://…` (HTTPS goes through a local proxy).
     NotHttp,
     /// No host after `http://`.
     NoHost,
+    /// The host is not a name, an IPv4 address or a bracketed IPv6 address.
+    BadHost(String),
+    /// The port is not a number in 1–65535.
+    BadPort(String),
+    /// User info, a query or a fragment, which a base URL does not take.
+    Unsupported(String),
 }
 
+impl std::fmt::Display for BaseUrlError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NotHttp => f.write_str(
+                "only http://host[:port][/prefix] is supported (put an HTTPS service behind a local proxy)",
+            ),
+            Self::NoHost => f.write_str("no host after http://"),
+            Self::BadHost(h) => write!(
+                f,
+                "host {h:?} is not a host name, an IPv4 address or a bracketed IPv6 address"
+            ),
+            Self::BadPort(p) => write!(f, "port {p:?} is not a number in 1-65535"),
+            Self::Unsupported(what) => write!(f, "a base URL takes no {what}"),
+        }
+    }
+}
+
+impl std::error::Error for BaseUrlError {}
+
 impl BaseUrl {
-    /// Parses `http://host[:port][/prefix]` (surrounding spaces ignored).
+    /// Parses `http://host[:port][/prefix]` (surrounding spaces ignored): the host a name,
+    /// an IPv4 address or an IPv6 address in brackets, the port 1–65535 (80 when absent).
     pub fn parse(url: &str) -> Result<Self, BaseUrlError> {
         let rest = url
             .trim()
@@ -41,16 +67,56 @@ impl BaseUrl {
         if authority.is_empty() {
             return Err(BaseUrlError::NoHost);
         }
-        let authority = if authority
-            .rsplit_once(':')
-            .is_some_and(|(_, p)| p.parse::<u16>().is_ok())
-        {
-            authority.to_string()
+        if authority.contains('@') {
+            return Err(BaseUrlError::Unsupported("user info".into()));
+        }
+        if rest.contains('?') || rest.contains('#') {
+            return Err(BaseUrlError::Unsupported("query or fragment".into()));
+        }
+        if prefix.chars().any(|c| c.is_whitespace() || c.is_control()) {
+            return Err(BaseUrlError::Unsupported("spaces in its path".into()));
+        }
+        let (host, port) = if let Some(v6) = authority.strip_prefix('[') {
+            let (addr, after) = v6
+                .split_once(']')
+                .ok_or_else(|| BaseUrlError::BadHost(authority.to_string()))?;
+            if addr.parse::<std::net::Ipv6Addr>().is_err() {
+                return Err(BaseUrlError::BadHost(format!("[{addr}]")));
+            }
+            let port = match after {
+                "" => None,
+                p => Some(
+                    p.strip_prefix(':')
+                        .ok_or_else(|| BaseUrlError::BadHost(authority.to_string()))?,
+                ),
+            };
+            (format!("[{addr}]"), port)
         } else {
-            format!("{authority}:80")
+            let (host, port) = match authority.split_once(':') {
+                Some((h, p)) => (h, Some(p)),
+                None => (authority, None),
+            };
+            let name_ok = !host.is_empty()
+                && host.len() <= 253
+                && host
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '.' | '_'))
+                && !host.starts_with(['-', '.'])
+                && !host.contains("..");
+            if !name_ok {
+                return Err(BaseUrlError::BadHost(host.to_string()));
+            }
+            (host.to_string(), port)
+        };
+        let port = match port {
+            None => 80,
+            Some(p) => match p.parse::<u16>() {
+                Ok(n) if n > 0 => n,
+                _ => return Err(BaseUrlError::BadPort(p.to_string())),
+            },
         };
         Ok(Self {
-            authority,
+            authority: format!("{host}:{port}"),
             prefix: prefix.to_string(),
         })
     }
@@ -67,8 +133,10 @@ pub enum PostError {
     Timeout(String),
     /// The connection failed before a complete answer (closed, reset, …).
     Connection(String),
-    /// The body could not be read (too large, or broken).
+    /// The body could not be read (broken).
     Body(String),
+    /// The body is longer than the limit, in bytes.
+    TooLarge(usize),
     /// The request could not be built.
     Request(String),
 }
@@ -83,6 +151,7 @@ impl std::fmt::Display for PostError {
                 write!(f, "the connection failed before a complete answer: {e}")
             }
             Self::Body(e) => write!(f, "the answer cannot be read: {e}"),
+            Self::TooLarge(n) => write!(f, "the answer is longer than the limit of {n} bytes"),
             Self::Request(e) => write!(f, "cannot build the request: {e}"),
         }
     }
@@ -152,9 +221,14 @@ pub async fn post_json(
     let body = Limited::new(response.into_body(), max_body)
         .collect()
         .await
-        .map_err(|e| match e.downcast::<hyper::Error>() {
-            Ok(e) => classify(&e),
-            Err(e) => PostError::Body(e.to_string()),
+        .map_err(|e| {
+            if e.is::<http_body_util::LengthLimitError>() {
+                return PostError::TooLarge(max_body);
+            }
+            match e.downcast::<hyper::Error>() {
+                Ok(e) => classify(&e),
+                Err(e) => PostError::Body(e.to_string()),
+            }
         })?
         .to_bytes();
     Ok((status, body))
@@ -178,5 +252,33 @@ mod tests {
         );
         assert_eq!(BaseUrl::parse("https://x"), Err(BaseUrlError::NotHttp));
         assert_eq!(BaseUrl::parse("http:///x"), Err(BaseUrlError::NoHost));
+        let u = BaseUrl::parse("http://[::1]:9000/v1").unwrap_or_else(|e| panic!("{e:?}"));
+        assert_eq!(u.authority, "[::1]:9000");
+        let u = BaseUrl::parse("http://[::1]").unwrap_or_else(|e| panic!("{e:?}"));
+        assert_eq!(u.authority, "[::1]:80");
+        for (bad, want) in [
+            ("http://[::1", BaseUrlError::BadHost("[::1".into())),
+            ("http://[::zz]:80", BaseUrlError::BadHost("[::zz]".into())),
+            ("http://[::1]x", BaseUrlError::BadHost("[::1]x".into())),
+            ("http://host:abc", BaseUrlError::BadPort("abc".into())),
+            ("http://host:0", BaseUrlError::BadPort("0".into())),
+            ("http://host:70000", BaseUrlError::BadPort("70000".into())),
+            ("http://ho st:80", BaseUrlError::BadHost("ho st".into())),
+            ("http://:80", BaseUrlError::BadHost(String::new())),
+            ("http://a:1:2", BaseUrlError::BadPort("1:2".into())),
+            (
+                "http://u@host",
+                BaseUrlError::Unsupported("user info".into()),
+            ),
+            (
+                "http://host/v1?x=1",
+                BaseUrlError::Unsupported("query or fragment".into()),
+            ),
+        ] {
+            assert_eq!(BaseUrl::parse(bad), Err(want), "{bad}");
+        }
+        // Every refusal reads as a sentence.
+        let e = BaseUrl::parse("http://[::1").unwrap_err().to_string();
+        assert!(e.contains("[::1") && e.contains("IPv6"), "{e}");
     }
 }

@@ -11,6 +11,6 @@ pub mod http;
 pub mod image;
 pub mod progress;
 
-pub use atomic::{write_atomic, write_atomic_with};
+pub use atomic::{FileSet, write_atomic, write_atomic_with};
 pub use image::{ImageFormat, PngSpeed, encode, encode_png};
 pub use progress::Progress;

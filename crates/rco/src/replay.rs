@@ -53,7 +53,7 @@ pub fn run(
     observations: &[Observation],
     json: bool,
     out: &mut dyn std::io::Write,
-) -> std::io::Result<()> {
+) -> std::io::Result<Replayed> {
     use crate::Source;
     use std::collections::BTreeMap;
     let mut speeds: BTreeMap<&'static str, usize> = BTreeMap::new();
@@ -106,5 +106,25 @@ pub fn run(
         writeln!(out, "sources: {}", share(&sources))?;
         writeln!(out, "speed controls: {}", share(&speeds))?;
     }
-    Ok(())
+    Ok(Replayed {
+        ticks: observations.len(),
+        fallbacks: sources.get("fallback").copied().unwrap_or(0),
+    })
+}
+
+/// What a replay went through ([`run`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Replayed {
+    /// Ticks replayed.
+    pub ticks: usize,
+    /// Ticks whose control came from the fallback (no usable answer from the backend).
+    pub fallbacks: usize,
+}
+
+impl Replayed {
+    /// Whether every tick fell back: the backend never gave a usable answer, so the replay
+    /// measured the fallback, not the backend (`fogline rco replay` exits 1).
+    pub fn all_fell_back(&self) -> bool {
+        self.ticks > 0 && self.fallbacks == self.ticks
+    }
 }

@@ -28,16 +28,7 @@ impl BackendSetup {
         let BackendSetup::Openai(p) = self else {
             return Ok(());
         };
-        let rest = p
-            .base_url
-            .strip_prefix("http://")
-            .ok_or_else(|| format!("{}: only http:// URLs are supported", p.base_url))?;
-        let host_port = rest.split('/').next().unwrap_or(rest);
-        let with_port = if host_port.contains(':') {
-            host_port.to_string()
-        } else {
-            format!("{host_port}:80")
-        };
+        let with_port = p.parsed_url().map_err(|e| e.to_string())?.authority;
         let addrs: Vec<std::net::SocketAddr> = with_port
             .to_socket_addrs()
             .map_err(|e| format!("{}: cannot resolve {with_port}: {e}", p.base_url))?

@@ -4,6 +4,7 @@
 //! written atomically (a temporary file, then a rename).
 
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use serde_json::json;
@@ -25,17 +26,18 @@ pub struct Written {
     pub closed_loop: PathBuf,
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SimError> {
-    fogline_io::write_atomic(path, bytes).map_err(|e| {
-        let source = match fogline_io::atomic::WriteError::of(&e) {
-            Some(w) => std::io::Error::new(w.source.kind(), w.source.to_string()),
-            None => e,
+/// A write error as the sim reports it (the file and the cause).
+fn io_err(fallback: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
+    move |e| {
+        let (path, source) = match fogline_io::atomic::WriteError::of(&e) {
+            Some(w) => (
+                w.path.display().to_string(),
+                std::io::Error::new(w.source.kind(), w.source.to_string()),
+            ),
+            None => (fallback.display().to_string(), e),
         };
-        SimError::Io {
-            path: path.display().to_string(),
-            source,
-        }
-    })
+        SimError::Io { path, source }
+    }
 }
 
 /// Writes every output file into `dir` (created if needed).
@@ -60,25 +62,33 @@ pub fn write_all(results: &Results, dir: &Path) -> Result<Written, SimError> {
         "threads": results.threads,
         "records": results.records,
     });
-    write_atomic(
+    // One set: a failure anywhere leaves the previous files in place.
+    let mut set = fogline_io::FileSet::new();
+    set.write(
         &w.results,
         serde_json::to_string_pretty(&doc)
             .map_err(json_err)?
             .as_bytes(),
-    )?;
-    let mut lines = String::new();
-    for r in &results.records {
-        lines.push_str(&serde_json::to_string(r).map_err(json_err)?);
-        lines.push('\n');
-    }
-    write_atomic(&w.records, lines.as_bytes())?;
-    write_atomic(&w.tables, markdown(results).as_bytes())?;
-    write_atomic(
+    )
+    .map_err(io_err(dir))?;
+    set.write_with(&w.records, |out| {
+        for r in &results.records {
+            serde_json::to_writer(&mut *out, r)?;
+            out.write_all(b"\n")?;
+        }
+        Ok(())
+    })
+    .map_err(io_err(dir))?;
+    set.write(&w.tables, markdown(results).as_bytes())
+        .map_err(io_err(dir))?;
+    set.write(
         &w.closed_loop,
         serde_json::to_string_pretty(&closed_loop(results))
             .map_err(json_err)?
             .as_bytes(),
-    )?;
+    )
+    .map_err(io_err(dir))?;
+    set.commit().map_err(io_err(dir))?;
     Ok(w)
 }
 

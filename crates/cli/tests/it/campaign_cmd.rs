@@ -280,3 +280,77 @@ fn a_campaign_killed_with_sigkill_again_and_again_resumes_to_the_uninterrupted_t
         "identical tables after {kills} kills"
     );
 }
+
+#[test]
+fn a_campaign_killed_in_its_first_100_ms_resumes_every_time() {
+    // Kills while the store is being created (the first tens of milliseconds) once wedged
+    // it for good. 30 fresh stores, each killed at a random moment in its first 100 ms, then
+    // resumed: each finishes with the uninterrupted run's tables (with the 30 kills of the
+    // test above, 60 kills in all).
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("start.toml");
+    write_config_at(&cfg, 4, "\"noise_30\", \"dark\"", (576, 320));
+    let c = cfg.to_str().unwrap();
+    let whole = d.join("whole.sqlite");
+    let o = fogline(&["campaign", "run", c, "--store", whole.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = fogline(&[
+        "campaign",
+        "export",
+        whole.to_str().unwrap(),
+        "--out",
+        d.join("e-whole").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let expected = files(&d.join("e-whole"));
+    let mut landed = 0;
+    for (i, r) in delays(20_261_127).take(30).enumerate() {
+        let store = d.join(format!("s{i}.sqlite"));
+        let args = [
+            "-q",
+            "campaign",
+            "run",
+            c,
+            "--store",
+            store.to_str().unwrap(),
+            "--resume",
+        ];
+        let mut child = Command::new(env!("CARGO_BIN_EXE_fogline"))
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(r % 100));
+        if child.try_wait().unwrap().is_none() {
+            landed += 1;
+        }
+        child.kill().ok(); // SIGKILL
+        child.wait().unwrap();
+        let o = fogline(&args);
+        assert!(
+            o.status.success(),
+            "store {i} (killed after {} ms): {}",
+            r % 100,
+            text(&o)
+        );
+        let out = d.join(format!("e{i}"));
+        let o = fogline(&[
+            "campaign",
+            "export",
+            store.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(
+            files(&out) == expected,
+            "store {i}: tables differ from the uninterrupted run"
+        );
+    }
+    assert!(
+        landed >= 25,
+        "only {landed} of 30 kills landed before the run ended"
+    );
+}

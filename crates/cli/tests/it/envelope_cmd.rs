@@ -195,6 +195,44 @@ fn bad_input_exits_2_with_the_error_chain_and_keeps_previous_outputs() {
         .collect();
     assert!(leftovers.is_empty());
 
+    // One file of the set cannot be written (a directory is where report.html goes): none
+    // of the four is replaced, and the error names it.
+    let kept: Vec<_> = ["envelope.json", "envelope.md", "odd.json"]
+        .map(|f| std::fs::read(out.join(f)).unwrap())
+        .into();
+    std::fs::remove_file(out.join("report.html")).unwrap();
+    std::fs::create_dir_all(out.join("report.html/x")).unwrap();
+    let o = envelope_quick(&pairs, &out, &["--seed", "9"]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("report.html") && err.contains("directory"),
+        "{err}"
+    );
+    let now: Vec<_> = ["envelope.json", "envelope.md", "odd.json"]
+        .map(|f| std::fs::read(out.join(f)).unwrap())
+        .into();
+    assert!(now == kept, "a failed set must leave every previous file");
+    let names: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(names.is_empty(), "temporaries left: {names:?}");
+    std::fs::remove_dir_all(out.join("report.html")).unwrap();
+    // With the obstacle gone the same run replaces all four.
+    assert_eq!(
+        envelope_quick(&pairs, &out, &["--seed", "9"]).status.code(),
+        Some(0)
+    );
+    assert_ne!(std::fs::read(out.join("envelope.json")).unwrap(), kept[0]);
+    assert!(out.join("report.html").is_file());
+
     let o = fogline(&[
         "envelope",
         "/nonexistent/pairs.csv",
@@ -317,4 +355,15 @@ fn demo_runs_offline_and_prints_its_outputs() {
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    // Made in a staging directory and committed as one set: nothing of it is left, and the
+    // envelope names the table where it now is.
+    assert!(!out.join(".fogline-demo.staging").exists());
+    let env: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("envelope.json")).unwrap()).unwrap();
+    assert_eq!(
+        env["input"]["path"].as_str(),
+        out.join("pairs.csv").to_str(),
+        "{}",
+        env["input"]
+    );
 }

@@ -54,3 +54,59 @@ fn a_bad_observation_file_is_named() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("obs.jsonl"), "{err}");
 }
+
+#[test]
+fn a_replay_where_every_tick_fell_back_exits_1_and_a_malformed_url_fails_at_start_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("obs.jsonl");
+    let head: String = std::fs::read_to_string(data())
+        .unwrap()
+        .lines()
+        .take(4)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&f, head).unwrap();
+    // A closed port on loopback: every call fails, every tick falls back.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let url = format!("http://127.0.0.1:{port}");
+    let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args(["rco", "replay"])
+        .arg(&f)
+        .args(["--backend", "openai", "--url", &url, "--timeout-ms", "500"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("all 4 ticks fell back"), "{err}");
+    // The rules backend on the same file: no fallback, exit 0.
+    let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args(["rco", "replay"])
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    for bad in ["http://[::1", "http://host:port", "http://a b"] {
+        let sim_out = dir.path().join("sim");
+        for cmd in [
+            vec!["rco", "replay", f.to_str().unwrap()],
+            vec!["sim", "run", "--quick", "--out", sim_out.to_str().unwrap()],
+        ] {
+            let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
+                .args(&cmd)
+                .args(["--backend", "openai", "--url", bad])
+                .output()
+                .unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{cmd:?} {bad}: {err}");
+            assert!(
+                err.contains("--url") && err.contains(bad),
+                "{cmd:?} {bad}: {err}"
+            );
+        }
+    }
+}

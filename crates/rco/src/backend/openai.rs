@@ -22,6 +22,7 @@ use std::time::Duration;
 
 use base64::Engine as _;
 use bytes::Bytes;
+use fogline_io::http::PostError;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use tokio::runtime::Runtime;
@@ -91,19 +92,21 @@ impl fmt::Debug for OpenAiBackend {
     }
 }
 
+impl OpenAiParams {
+    /// The base URL, checked (`http://host[:port][/prefix]`): a malformed one is an error
+    /// before any call is made.
+    pub fn parsed_url(&self) -> Result<fogline_io::http::BaseUrl, RcoError> {
+        let url = self.base_url.trim();
+        fogline_io::http::BaseUrl::parse(url)
+            .map_err(|e| RcoError::Backend(format!("base URL {url:?}: {e}")))
+    }
+}
+
 impl OpenAiBackend {
     /// A client for `params.base_url` (nothing is connected until the first call). Reads the
     /// API key from the environment now.
     pub fn new(params: OpenAiParams) -> Result<Self, RcoError> {
-        let url = params.base_url.trim();
-        let base = fogline_io::http::BaseUrl::parse(url).map_err(|e| {
-            RcoError::Backend(match e {
-                fogline_io::http::BaseUrlError::NotHttp => format!(
-                    "base URL {url:?}: only http://host:port[/prefix] is supported (put an HTTPS API behind a local proxy)"
-                ),
-                fogline_io::http::BaseUrlError::NoHost => format!("base URL {url:?} has no host"),
-            })
-        })?;
+        let base = params.parsed_url()?;
         let prefix = base
             .prefix
             .strip_suffix("/v1")
@@ -193,9 +196,18 @@ impl OpenAiBackend {
             MAX_REPLY_BYTES,
         )
         .await
-        .map_err(|e| BackendError::Unavailable {
-            url: self.params.base_url.clone(),
-            reason: e.to_string(),
+        .map_err(|e| match e {
+            // It answered, with something that is not a usable reply.
+            PostError::NotHttp(_) | PostError::Body(_) | PostError::TooLarge(_) => {
+                BackendError::Protocol(e.to_string())
+            }
+            PostError::Connect(_)
+            | PostError::Connection(_)
+            | PostError::Timeout(_)
+            | PostError::Request(_) => BackendError::Unavailable {
+                url: self.params.base_url.clone(),
+                reason: e.to_string(),
+            },
         })
     }
 }

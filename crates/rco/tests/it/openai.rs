@@ -257,6 +257,25 @@ fn malformed_answers_and_errors_fall_back() {
 }
 
 #[test]
+fn a_reply_over_the_limit_is_named_as_such_not_as_unreachable() {
+    let big = format!(
+        "{{\"pad\": \"{}\"}}",
+        "x".repeat(fogline_rco::backend::openai::MAX_REPLY_BYTES + 10)
+    );
+    let m = mock(move |_, _| (200, big.clone(), 0));
+    let mut r = Rco::new(RcoParams::default(), Box::new(backend(m.addr, 5_000))).unwrap();
+    let d = r.step(&clean(0));
+    assert_safe_fallback(&d, "oversized");
+    let f = d.fallback.unwrap();
+    assert!(
+        f.message.contains("longer than the limit of 4194304 bytes")
+            && !f.message.contains("cannot reach"),
+        "{}",
+        f.message
+    );
+}
+
+#[test]
 fn slow_answers_time_out() {
     let m = mock(|name, _| (200, completion(&good(name, "")), 3_000));
     let mut r = Rco::new(RcoParams::default(), Box::new(backend(m.addr, 300))).unwrap();

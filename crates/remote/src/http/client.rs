@@ -63,19 +63,8 @@ impl Client {
     /// A client for `opts.url`; nothing is connected until the first call.
     pub fn new(opts: ClientOptions) -> Result<Self, PlanFailure> {
         let url = opts.url.trim();
-        let base = fogline_io::http::BaseUrl::parse(url).map_err(|e| {
-            failure(
-                FailureKind::Input,
-                match e {
-                    fogline_io::http::BaseUrlError::NotHttp => {
-                        format!("planner URL {url:?}: only http://host:port[/prefix] is supported")
-                    }
-                    fogline_io::http::BaseUrlError::NoHost => {
-                        format!("planner URL {url:?} has no host")
-                    }
-                },
-            )
-        })?;
+        let base = fogline_io::http::BaseUrl::parse(url)
+            .map_err(|e| failure(FailureKind::Input, format!("planner URL {url:?}: {e}")))?;
         let (authority, prefix) = (base.authority, base.prefix);
         if opts.timeout.is_zero() {
             return Err(failure(
@@ -114,7 +103,9 @@ impl Client {
                         PostError::Connect(_) | PostError::Connection(_) => {
                             FailureKind::Unavailable
                         }
-                        PostError::NotHttp(_) | PostError::Body(_) => FailureKind::InvalidAnswer,
+                        PostError::NotHttp(_) | PostError::Body(_) | PostError::TooLarge(_) => {
+                            FailureKind::InvalidAnswer
+                        }
                         PostError::Timeout(_) => FailureKind::Timeout,
                         PostError::Request(_) => FailureKind::Input,
                     };
