@@ -10,7 +10,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use fogline_campaign::BuiltinPlanner;
-use fogline_remote::{Planner, egodriver, http};
+use fogline_remote::{Limits, Planner, egodriver, http};
 use fogline_types::clip::CameraId;
 
 /// The protocol to serve.
@@ -37,9 +37,40 @@ pub struct ServeArgs {
     /// names need no mapping; without a front-wide camera the widest forward camera stands in.
     #[arg(long = "camera-map", value_name = "LOGICAL=CAMERA")]
     camera_map: Vec<String>,
-    /// egodriver only: refuse the `shut_down` RPC (by default it stops the server).
+    /// egodriver only: let the `shut_down` RPC stop the server (AlpaSim's runtime calls it at
+    /// the end of a run). Off by default: the call is unauthenticated.
     #[arg(long)]
-    no_remote_shutdown: bool,
+    allow_remote_shutdown: bool,
+    /// Connections held open at once; more are closed as they arrive.
+    #[arg(long, default_value_t = Limits::default().max_connections)]
+    max_connections: usize,
+    /// Seconds a connection may send nothing before it is closed.
+    #[arg(long, default_value_t = Limits::default().idle_timeout.as_secs_f64())]
+    idle_timeout: f64,
+    /// Requests read, decoded and planned at once; more wait their turn.
+    #[arg(long, default_value_t = Limits::default().max_concurrent_requests)]
+    max_concurrent: usize,
+    /// Pixels (frames x width x height) one request, or one egodriver session, may carry.
+    #[arg(long, default_value_t = Limits::default().max_request_pixels)]
+    max_pixels: u64,
+}
+
+fn limits(a: &ServeArgs) -> Result<Limits> {
+    if !(a.idle_timeout.is_finite() && a.idle_timeout > 0.0 && a.idle_timeout < 1e6) {
+        bail!(
+            "--idle-timeout: expected a positive number of seconds, got {}",
+            a.idle_timeout
+        );
+    }
+    let l = Limits {
+        max_connections: a.max_connections,
+        idle_timeout: std::time::Duration::from_secs_f64(a.idle_timeout),
+        max_concurrent_requests: a.max_concurrent,
+        max_request_pixels: a.max_pixels,
+        ..Limits::default()
+    };
+    l.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(l)
 }
 
 fn camera_map(entries: &[String]) -> Result<BTreeMap<String, CameraId>> {
@@ -75,19 +106,29 @@ pub fn serve(a: ServeArgs) -> Result<ExitCode> {
         Some(addr) => addr,
         None => default_addr.parse().context("the default address")?,
     };
-    if a.protocol == Protocol::Http && (!a.camera_map.is_empty() || a.no_remote_shutdown) {
-        bail!("--camera-map and --no-remote-shutdown apply to `fogline serve egodriver` only");
+    if a.protocol == Protocol::Http && (!a.camera_map.is_empty() || a.allow_remote_shutdown) {
+        bail!("--camera-map and --allow-remote-shutdown apply to `fogline serve egodriver` only");
     }
+    let limits = limits(&a)?;
     let handle = match a.protocol {
         Protocol::Egodriver => egodriver::serve(
             addr,
             planner,
             egodriver::ServeOptions {
                 camera_map: camera_map(&a.camera_map)?,
-                allow_shut_down: !a.no_remote_shutdown,
+                allow_shut_down: a.allow_remote_shutdown,
+                limits,
+                ..egodriver::ServeOptions::default()
             },
         ),
-        Protocol::Http => http::serve(addr, planner, http::ServeOptions::default()),
+        Protocol::Http => http::serve(
+            addr,
+            planner,
+            http::ServeOptions {
+                limits,
+                ..http::ServeOptions::default()
+            },
+        ),
     }
     .with_context(|| format!("cannot serve {name} on {addr}"))?;
     {

@@ -43,6 +43,41 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<Decoded, String> {
     })
 }
 
+/// [`decode`] for an image that must be `width × height` (as `declared_by` says, for the
+/// error): the size is read from the image's header first, so an image that claims more
+/// pixels than expected is refused before anything is allocated for it.
+pub(crate) fn decode_sized(
+    bytes: &[u8],
+    width: u32,
+    height: u32,
+    declared_by: &str,
+) -> Result<Decoded, String> {
+    if bytes.is_empty() {
+        return Err("the image is empty".into());
+    }
+    let format = image::guess_format(bytes)
+        .map_err(|_| "the image is neither PNG nor JPEG (unrecognised header)".to_string())?;
+    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
+        return Err(format!("the image is {format:?}; PNG or JPEG expected"));
+    }
+    let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(|e| format!("cannot read the {format:?} image's header: {e}"))?;
+    if (w, h) != (width, height) {
+        return Err(format!(
+            "the image is {w}x{h} but {declared_by} says {width}x{height}"
+        ));
+    }
+    let d = decode(bytes)?;
+    if (d.width, d.height) != (width, height) {
+        return Err(format!(
+            "the image decodes to {}x{} but {declared_by} says {width}x{height}",
+            d.width, d.height
+        ));
+    }
+    Ok(d)
+}
+
 /// Work below this many bytes is not worth a thread.
 const PARALLEL_BYTES: usize = 1 << 20;
 

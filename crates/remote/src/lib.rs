@@ -18,7 +18,7 @@ mod codec;
 mod geom;
 mod serving;
 
-pub use serving::ServerHandle;
+pub use serving::{Limits, ServerHandle};
 
 /// How a client encodes camera frames for the wire: PNG (lossless, the default: the planner
 /// sees exactly the pixels fogline produced) or JPEG at a quality of 1–100 (smaller, lossy;

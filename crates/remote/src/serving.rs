@@ -1,13 +1,261 @@
-//! What both servers share: their tokio runtime and the handle that stops them.
+//! What both servers share: their tokio runtime, the handle that stops them, and the limits
+//! that keep a server answering under load (a connection cap, an idle timeout, a bound on
+//! concurrent requests and on the pixels one request may make the server decode).
 
 use std::io;
 use std::net::SocketAddr;
+use std::pin::Pin;
 use std::sync::Arc;
+use std::task::{Context, Poll};
 use std::time::Duration;
 
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::runtime::Runtime;
-use tokio::sync::watch;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc, watch};
 use tokio::task::JoinHandle;
+use tokio::time::{Instant, Sleep};
+
+/// The limits of a server (both protocols; `docs/security.md` explains each default). With
+/// the defaults a server's memory stays under 1 GB however it is loaded: at most
+/// `max_concurrent_requests` requests are read and decoded at once, each bounded in bytes
+/// and in decoded pixels, and idle connections cost a few kilobytes each until they time out.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Limits {
+    /// Connections held open at once; beyond it new ones are closed as they arrive (default
+    /// 4,096; lowered to what the process's file-descriptor limit allows).
+    pub max_connections: usize,
+    /// A connection that sends nothing for this long is closed (default 60 s).
+    pub idle_timeout: Duration,
+    /// HTTP: the request line and headers must arrive within this (default 10 s).
+    pub header_timeout: Duration,
+    /// HTTP: the whole body must arrive within this; gRPC: the whole call (default 60 s).
+    pub request_timeout: Duration,
+    /// Requests read, decoded and planned at once; more wait their turn before their body
+    /// is read (default 2, the cores a planner can use).
+    pub max_concurrent_requests: usize,
+    /// Pixels one request may make the server decode: the frames × width × height of an
+    /// HTTP request, of an egodriver session's declared cameras (default 36 M: four cameras
+    /// × four 1920 × 1080 frames fit).
+    pub max_request_pixels: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            max_connections: 4096,
+            idle_timeout: Duration::from_secs(60),
+            header_timeout: Duration::from_secs(10),
+            request_timeout: Duration::from_secs(60),
+            max_concurrent_requests: 2,
+            max_request_pixels: 36_000_000,
+        }
+    }
+}
+
+impl Limits {
+    /// Checks the limits are usable (every one positive).
+    pub fn validate(&self) -> Result<(), String> {
+        let zero = [
+            ("max_connections", self.max_connections == 0),
+            ("idle_timeout", self.idle_timeout.is_zero()),
+            ("header_timeout", self.header_timeout.is_zero()),
+            ("request_timeout", self.request_timeout.is_zero()),
+            ("max_concurrent_requests", self.max_concurrent_requests == 0),
+            ("max_request_pixels", self.max_request_pixels == 0),
+        ];
+        match zero.iter().find(|(_, z)| *z) {
+            Some((name, _)) => Err(format!("server limit {name} must be positive")),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Raises the process's soft limit on open files to its hard limit (at most 65,536), as
+/// servers do, and returns the soft limit now in force (`None` where it cannot be read).
+fn raise_fd_limit() -> Option<u64> {
+    #[cfg(unix)]
+    {
+        use rustix::process::{Resource, getrlimit, setrlimit};
+        let mut lim = getrlimit(Resource::Nofile);
+        let cur = lim.current?;
+        let want = lim.maximum.unwrap_or(65_536).min(65_536);
+        if want > cur {
+            lim.current = Some(want);
+            if setrlimit(Resource::Nofile, lim).is_ok() {
+                return Some(want);
+            }
+        }
+        Some(cur)
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
+}
+
+/// Accepts connections on `listener` until `stop`, each wrapped in a [`Guarded`] stream (the
+/// connection cap and the idle timeout), and sends them on the returned channel.
+pub(crate) fn accept_guarded(
+    listener: tokio::net::TcpListener,
+    limits: &Limits,
+    stop: StopFlag,
+    name: &'static str,
+) -> mpsc::Receiver<io::Result<Guarded>> {
+    let fds = raise_fd_limit();
+    // Descriptors for everything else the process holds (files, the runtime, logs).
+    let cap = match fds {
+        Some(n) => limits
+            .max_connections
+            .min(usize::try_from(n.saturating_sub(128)).unwrap_or(usize::MAX))
+            .max(1),
+        None => limits.max_connections,
+    };
+    if cap < limits.max_connections {
+        log::info!(
+            "{name}: at most {cap} connections (the open-file limit is {})",
+            fds.unwrap_or(0)
+        );
+    }
+    let slots = Arc::new(Semaphore::new(cap));
+    let idle = limits.idle_timeout;
+    let (tx, rx) = mpsc::channel(64);
+    tokio::spawn(async move {
+        let halt = stopped(stop);
+        tokio::pin!(halt);
+        let mut shed: u64 = 0;
+        loop {
+            let accepted = tokio::select! {
+                _ = &mut halt => break,
+                a = listener.accept() => a,
+            };
+            match accepted {
+                Ok((stream, _peer)) => {
+                    let _ = stream.set_nodelay(true);
+                    let Ok(permit) = Arc::clone(&slots).try_acquire_owned() else {
+                        // Full: close it now rather than let the backlog fill.
+                        shed += 1;
+                        if shed.is_power_of_two() {
+                            log::warn!(
+                                "{name}: {cap} connections open; {shed} new ones closed so far"
+                            );
+                        }
+                        drop(stream);
+                        continue;
+                    };
+                    if tx
+                        .send(Ok(Guarded::new(stream, permit, idle)))
+                        .await
+                        .is_err()
+                    {
+                        break;
+                    }
+                }
+                Err(e) => {
+                    // Out of descriptors and the like: back off rather than spin.
+                    log::warn!("{name}: accept failed: {e}");
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+            }
+        }
+    });
+    rx
+}
+
+/// A server's connection: it holds one of the server's connection slots while open, and
+/// fails its reads once the peer has sent nothing for the idle timeout (the server then
+/// closes it).
+pub(crate) struct Guarded {
+    inner: tokio::net::TcpStream,
+    _slot: OwnedSemaphorePermit,
+    idle: Duration,
+    deadline: Pin<Box<Sleep>>,
+}
+
+impl Guarded {
+    fn new(inner: tokio::net::TcpStream, slot: OwnedSemaphorePermit, idle: Duration) -> Self {
+        Self {
+            inner,
+            _slot: slot,
+            idle,
+            deadline: Box::pin(tokio::time::sleep(idle)),
+        }
+    }
+
+    fn touch(&mut self) {
+        self.deadline.as_mut().reset(Instant::now() + self.idle);
+    }
+}
+
+impl AsyncRead for Guarded {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<io::Result<()>> {
+        let before = buf.filled().len();
+        match Pin::new(&mut self.inner).poll_read(cx, buf) {
+            Poll::Ready(r) => {
+                if buf.filled().len() > before {
+                    self.touch();
+                }
+                Poll::Ready(r)
+            }
+            Poll::Pending => match self.deadline.as_mut().poll(cx) {
+                Poll::Ready(()) => Poll::Ready(Err(io::Error::new(
+                    io::ErrorKind::TimedOut,
+                    "the peer sent nothing for the idle timeout",
+                ))),
+                Poll::Pending => Poll::Pending,
+            },
+        }
+    }
+}
+
+impl AsyncWrite for Guarded {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<io::Result<usize>> {
+        let r = Pin::new(&mut self.inner).poll_write(cx, buf);
+        if matches!(r, Poll::Ready(Ok(n)) if n > 0) {
+            self.touch();
+        }
+        r
+    }
+
+    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.inner).poll_flush(cx)
+    }
+
+    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.inner).poll_shutdown(cx)
+    }
+
+    fn poll_write_vectored(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        bufs: &[io::IoSlice<'_>],
+    ) -> Poll<io::Result<usize>> {
+        let r = Pin::new(&mut self.inner).poll_write_vectored(cx, bufs);
+        if matches!(r, Poll::Ready(Ok(n)) if n > 0) {
+            self.touch();
+        }
+        r
+    }
+
+    fn is_write_vectored(&self) -> bool {
+        self.inner.is_write_vectored()
+    }
+}
+
+impl tonic::transport::server::Connected for Guarded {
+    type ConnectInfo = tonic::transport::server::TcpConnectInfo;
+
+    fn connect_info(&self) -> Self::ConnectInfo {
+        self.inner.connect_info()
+    }
+}
 
 /// How long a graceful shutdown waits for calls in flight before it drops them.
 const GRACE: Duration = Duration::from_secs(5);

@@ -11,6 +11,7 @@ mod planner_cmd;
 mod rco_cmd;
 mod reference_planner;
 mod report_cmd;
+mod serve_load;
 mod world_cmd;
 
 /// Runs the `fogline` binary with `args`.

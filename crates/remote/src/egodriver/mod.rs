@@ -22,7 +22,7 @@ mod server;
 pub use client::{Client, ClientOptions};
 pub use server::{ServeOptions, serve};
 
-pub use crate::{ImageFormat, ServerHandle};
+pub use crate::{ImageFormat, Limits, ServerHandle};
 
 /// The generated messages and service of the contract (our own `.proto` files under
 /// `crates/remote/proto/`, wire-compatible with AlpaSim's).

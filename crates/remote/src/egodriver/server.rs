@@ -10,7 +10,6 @@ use fogline_types::clip::{
     CameraCalib, CameraId, CameraInput, DT_S, EgoPose, FRAMES, HISTORY, PlannerInput, PlannerOutput,
 };
 use tonic::metadata::MetadataValue;
-use tonic::transport::server::TcpIncoming;
 use tonic::{Request, Response, Status};
 
 use super::wire::common::version_id::ApiVersion;
@@ -25,7 +24,7 @@ use super::wire::nre::grpc::protos::sensorsim::available_cameras_return::Availab
 use super::wire::nre::grpc::protos::sensorsim::camera_spec::CameraParam;
 use super::{ALPASIM_API_VERSION, CONTRACT_METADATA_KEY, CONTRACT_REVISION, MAX_MESSAGE_BYTES};
 use crate::geom::{CameraFrame, camera_angles, matrix, wrap, yaw_of};
-use crate::serving::{StopFlag, server_runtime, stop_flag, stopped};
+use crate::serving::{Limits, StopFlag, accept_guarded, server_runtime, stop_flag, stopped};
 use crate::{FailureKind, PlanRequest, Planner, ServerHandle, codec};
 
 /// Sessions kept at once; beyond this the least recently used one is dropped.
@@ -43,15 +42,24 @@ pub struct ServeOptions {
     /// name (`camera_front_wide_120fov`, …) needs no entry; an entry overrides it.
     pub camera_map: BTreeMap<String, CameraId>,
     /// Whether the `shut_down` RPC stops the server (AlpaSim's runtime calls it at the end
-    /// of a run).
+    /// of a run). Off by default: the call is unauthenticated, so any local peer could stop
+    /// the server.
     pub allow_shut_down: bool,
+    /// Connections, timeouts, concurrent calls and decoded pixels ([`Limits`]; the pixel
+    /// limit bounds a session's declared cameras × frames).
+    pub limits: Limits,
+    /// The decoded frames all sessions may hold together, bytes (default 384 MiB); a new
+    /// session that would pass it closes the least recently used ones.
+    pub max_stored_bytes: u64,
 }
 
 impl Default for ServeOptions {
     fn default() -> Self {
         Self {
             camera_map: BTreeMap::new(),
-            allow_shut_down: true,
+            allow_shut_down: false,
+            limits: Limits::default(),
+            max_stored_bytes: 384 << 20,
         }
     }
 }
@@ -63,11 +71,13 @@ pub fn serve(
     planner: Arc<dyn Planner>,
     opts: ServeOptions,
 ) -> io::Result<ServerHandle> {
+    opts.limits.validate().map_err(io::Error::other)?;
     let runtime = server_runtime("fogline-egodriver")?;
     let listener = runtime.block_on(tokio::net::TcpListener::bind(addr))?;
     let local = listener.local_addr()?;
     let stop = stop_flag();
     let describe = planner.describe();
+    let limits = opts.limits.clone();
     let service = Service {
         shared: Arc::new(Shared {
             planner,
@@ -75,6 +85,7 @@ pub fn serve(
             sessions: Mutex::new(HashMap::new()),
             stop: stop.clone(),
             said: Mutex::new(HashSet::new()),
+            evicted: Mutex::new(std::collections::VecDeque::new()),
         }),
     };
     let server = EgodriverServiceServer::new(service)
@@ -82,10 +93,21 @@ pub fn serve(
         .max_encoding_message_size(MAX_MESSAGE_BYTES);
     let task = {
         let _guard = runtime.enter();
-        let incoming = TcpIncoming::from(listener).with_nodelay(Some(true));
+        let incoming = tokio_stream::wrappers::ReceiverStream::new(accept_guarded(
+            listener,
+            &limits,
+            stop.clone(),
+            "egodriver",
+        ));
         let signal = stopped(stop.clone());
         runtime.spawn(async move {
             tonic::transport::Server::builder()
+                .timeout(limits.request_timeout)
+                .max_concurrent_streams(Some(32))
+                // Calls beyond the cap wait before their messages are decoded.
+                .layer(tower::limit::GlobalConcurrencyLimitLayer::new(
+                    limits.max_concurrent_requests,
+                ))
                 .serve_with_incoming_shutdown(server, incoming, signal)
                 .await
                 .map_err(io::Error::other)
@@ -102,6 +124,8 @@ struct Shared {
     stop: StopFlag,
     /// Notes already logged at info level (later repeats go to debug).
     said: Mutex<HashSet<String>>,
+    /// Sessions recently closed to make room (the newest 1,024), so their calls are told why.
+    evicted: Mutex<std::collections::VecDeque<String>>,
 }
 
 struct Service {
@@ -109,6 +133,8 @@ struct Service {
 }
 
 struct Session {
+    /// The bytes its decoded frames may take (declared cameras × frames kept × 3 bytes).
+    reserved: u64,
     scene_id: String,
     seed: u64,
     cameras: Vec<Slot>,
@@ -150,10 +176,18 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 impl Shared {
     fn session(&self, uuid: &str) -> Result<Arc<Mutex<Session>>, Status> {
-        let s = lock(&self.sessions)
-            .get(uuid)
-            .cloned()
-            .ok_or_else(|| Status::not_found(format!("unknown session {uuid:?}")))?;
+        let found = lock(&self.sessions).get(uuid).cloned();
+        let s = found.ok_or_else(|| {
+            if lock(&self.evicted).iter().any(|e| e == uuid) {
+                Status::resource_exhausted(format!(
+                    "session {uuid:?} was closed to make room for newer ones (this server keeps \
+                     at most {MAX_SESSIONS} sessions and {} bytes of frames)",
+                    self.opts.max_stored_bytes
+                ))
+            } else {
+                Status::not_found(format!("unknown session {uuid:?}"))
+            }
+        })?;
         lock(&s).last_used = Instant::now();
         Ok(s)
     }
@@ -213,7 +247,31 @@ impl EgodriverService for Service {
             msg.random_seed,
             summary.join(", ")
         );
+        let pixels: u64 = cameras
+            .iter()
+            .map(|s| match &s.role {
+                Role::Camera { calib, .. } => u64::from(calib.width) * u64::from(calib.height),
+                Role::Ignored(_) => 0,
+            })
+            .sum::<u64>()
+            * FRAMES as u64;
+        let cap = self.shared.opts.limits.max_request_pixels;
+        if pixels > cap {
+            return Err(Status::resource_exhausted(format!(
+                "start_session: the declared cameras hold {pixels} pixels over {FRAMES} frames, \
+                 more than this server's limit of {cap}"
+            )));
+        }
+        let reserved = pixels * 3;
+        let budget = self.shared.opts.max_stored_bytes;
+        if reserved > budget {
+            return Err(Status::resource_exhausted(format!(
+                "start_session: the session's frames need {reserved} bytes, more than this \
+                 server's store of {budget}"
+            )));
+        }
         let session = Session {
+            reserved,
             scene_id,
             seed: msg.random_seed,
             cameras,
@@ -226,17 +284,28 @@ impl EgodriverService for Service {
                 "session {uuid:?} already exists"
             )));
         }
-        if sessions.len() >= MAX_SESSIONS {
+        // Room by count and by the frames' bytes: the least recently used sessions go.
+        loop {
+            let held: u64 = sessions.values().map(|s| lock(s).reserved).sum();
+            if sessions.len() < MAX_SESSIONS && held + reserved <= budget {
+                break;
+            }
             let oldest = sessions
                 .iter()
                 .min_by_key(|(_, s)| lock(s).last_used)
                 .map(|(k, _)| k.clone());
-            if let Some(k) = oldest {
-                log::warn!(
-                    "egodriver: {MAX_SESSIONS} sessions open; dropping {k}, the least recently used"
-                );
-                sessions.remove(&k);
+            let Some(k) = oldest else { break };
+            log::warn!(
+                "egodriver: {} sessions hold {held} bytes of frames; dropping {k}, the least \
+                 recently used",
+                sessions.len()
+            );
+            sessions.remove(&k);
+            let mut evicted = lock(&self.shared.evicted);
+            if evicted.len() >= 1024 {
+                evicted.pop_front();
             }
+            evicted.push_back(k);
         }
         sessions.insert(uuid, Arc::new(Mutex::new(session)));
         Ok(Response::new(SessionRequestStatus {}))
@@ -277,16 +346,12 @@ impl EgodriverService for Service {
             }
         };
         let bytes = image.image_bytes;
-        let decoded = tokio::task::spawn_blocking(move || codec::decode(&bytes))
-            .await
-            .map_err(|e| Status::internal(format!("decoding failed: {e}")))?
-            .map_err(|e| Status::invalid_argument(format!("camera {id:?}: {e}")))?;
-        if (decoded.width, decoded.height) != (width, height) {
-            return Err(Status::invalid_argument(format!(
-                "camera {id:?}: the image is {}x{} but start_session declared {width}x{height}",
-                decoded.width, decoded.height
-            )));
-        }
+        let decoded = tokio::task::spawn_blocking(move || {
+            codec::decode_sized(&bytes, width, height, "start_session")
+        })
+        .await
+        .map_err(|e| Status::internal(format!("decoding failed: {e}")))?
+        .map_err(|e| Status::invalid_argument(format!("camera {id:?}: {e}")))?;
         let t_us = if image.frame_end_us > 0 {
             image.frame_end_us
         } else {
@@ -457,7 +522,7 @@ impl EgodriverService for Service {
     async fn shut_down(&self, _request: Request<Empty>) -> Result<Response<Empty>, Status> {
         if !self.shared.opts.allow_shut_down {
             return Err(Status::permission_denied(
-                "shut_down is disabled on this server",
+                "shut_down is disabled on this server (fogline serve egodriver --allow-remote-shutdown enables it)",
             ));
         }
         log::info!("egodriver: shut_down requested");

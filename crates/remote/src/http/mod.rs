@@ -14,14 +14,14 @@ mod server;
 mod types;
 
 pub use client::{Client, ClientOptions};
-pub use server::{ServeOptions, serve};
+pub use server::{SERVE_BODY_BYTES, ServeOptions, serve};
 
-pub use crate::{ImageFormat, ServerHandle};
+pub use crate::{ImageFormat, Limits, ServerHandle};
 
 /// The path of the planning call.
 pub const PLAN_PATH: &str = "/v1/plan";
 /// The path of the health check.
 pub const HEALTH_PATH: &str = "/v1/health";
-/// The largest request or answer body either end accepts (256 MiB: sixteen 1080p PNG
-/// frames in base64 fit).
+/// The largest answer body the client accepts (256 MiB; the server's request limit is
+/// [`ServeOptions::max_body_bytes`]).
 pub const MAX_BODY_BYTES: usize = 256 * 1024 * 1024;

@@ -4,7 +4,6 @@ use std::convert::Infallible;
 use std::io;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::Duration;
 
 use base64::Engine as _;
 use base64::alphabet;
@@ -16,28 +15,38 @@ use hyper::body::Incoming;
 use hyper::header::{ALLOW, CONTENT_TYPE};
 use hyper::service::service_fn;
 use hyper::{Method, Request, Response, StatusCode};
-use hyper_util::rt::TokioIo;
+use hyper_util::rt::{TokioIo, TokioTimer};
+use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
 
 use super::types::{AnswerBody, ErrorBody, PlanBody};
-use super::{HEALTH_PATH, MAX_BODY_BYTES, PLAN_PATH};
-use crate::serving::{StopFlag, server_runtime, stop_flag, stopped};
+use super::{HEALTH_PATH, PLAN_PATH};
+use crate::serving::{
+    Guarded, Limits, StopFlag, accept_guarded, server_runtime, stop_flag, stopped,
+};
 use crate::{FailureKind, PlanRequest, Planner, ServerHandle, codec};
 
 /// Settings of an HTTP server.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ServeOptions {
-    /// The largest request body accepted, bytes (default 256 MiB).
+    /// The largest request body accepted, bytes (default 96 MiB: sixteen 1080p PNG camera
+    /// frames in base64 fit).
     pub max_body_bytes: usize,
+    /// Connections, timeouts, concurrent requests and decoded pixels ([`Limits`]).
+    pub limits: Limits,
 }
 
 impl Default for ServeOptions {
     fn default() -> Self {
         Self {
-            max_body_bytes: MAX_BODY_BYTES,
+            max_body_bytes: SERVE_BODY_BYTES,
+            limits: Limits::default(),
         }
     }
 }
+
+/// The default request body limit of the server.
+pub const SERVE_BODY_BYTES: usize = 96 * 1024 * 1024;
 
 /// Serves `planner` over the HTTP/JSON protocol on `addr` (port 0 picks a free port; see
 /// [`ServerHandle::local_addr`]). The socket is bound before this returns.
@@ -46,12 +55,21 @@ pub fn serve(
     planner: Arc<dyn Planner>,
     opts: ServeOptions,
 ) -> io::Result<ServerHandle> {
+    opts.limits.validate().map_err(io::Error::other)?;
+    if opts.max_body_bytes == 0 {
+        return Err(io::Error::other("max_body_bytes must be positive"));
+    }
     let runtime = server_runtime("fogline-http")?;
     let listener = runtime.block_on(tokio::net::TcpListener::bind(addr))?;
     let local = listener.local_addr()?;
     let stop = stop_flag();
     log::info!("http: serving {} on {local}", planner.describe());
-    let shared = Arc::new(Shared { planner, opts });
+    let requests = Arc::new(Semaphore::new(opts.limits.max_concurrent_requests));
+    let shared = Arc::new(Shared {
+        planner,
+        opts,
+        requests,
+    });
     let task = runtime.spawn(accept_loop(listener, shared, stop.clone()));
     Ok(ServerHandle::new(local, "http", stop, task, runtime))
 }
@@ -59,6 +77,8 @@ pub fn serve(
 struct Shared {
     planner: Arc<dyn Planner>,
     opts: ServeOptions,
+    /// One permit per request being read, decoded and planned.
+    requests: Arc<Semaphore>,
 }
 
 async fn accept_loop(
@@ -66,35 +86,35 @@ async fn accept_loop(
     shared: Arc<Shared>,
     stop: StopFlag,
 ) -> io::Result<()> {
+    let mut incoming = accept_guarded(listener, &shared.opts.limits, stop.clone(), "http");
     let mut connections = JoinSet::new();
     let halt = stopped(stop.clone());
     tokio::pin!(halt);
     loop {
         tokio::select! {
             _ = &mut halt => break,
-            accepted = listener.accept() => match accepted {
-                Ok((stream, _peer)) => {
-                    let _ = stream.set_nodelay(true);
+            accepted = incoming.recv() => match accepted {
+                Some(Ok(stream)) => {
                     connections.spawn(connection(stream, Arc::clone(&shared), stop.clone()));
                 }
-                Err(e) => {
-                    // Out of descriptors and the like: back off rather than spin.
-                    log::warn!("http: accept failed: {e}");
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                }
+                Some(Err(e)) => log::warn!("http: accept failed: {e}"),
+                None => break,
             },
             Some(_) = connections.join_next(), if !connections.is_empty() => {}
         }
     }
-    drop(listener);
+    drop(incoming);
     while connections.join_next().await.is_some() {}
     Ok(())
 }
 
-async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>, stop: StopFlag) {
+async fn connection(stream: Guarded, shared: Arc<Shared>, stop: StopFlag) {
+    let header_timeout = shared.opts.limits.header_timeout;
     let service = service_fn(move |req| handle(Arc::clone(&shared), req));
-    let conn =
-        hyper::server::conn::http1::Builder::new().serve_connection(TokioIo::new(stream), service);
+    let conn = hyper::server::conn::http1::Builder::new()
+        .timer(TokioTimer::new())
+        .header_read_timeout(header_timeout)
+        .serve_connection(TokioIo::new(stream), service);
     tokio::pin!(conn);
     let result = tokio::select! {
         r = conn.as_mut() => r,
@@ -162,10 +182,25 @@ async fn handle(
 }
 
 async fn plan(shared: Arc<Shared>, req: Request<Incoming>) -> Response<Full<Bytes>> {
-    let body = match Limited::new(req.into_body(), shared.opts.max_body_bytes)
-        .collect()
-        .await
-    {
+    // The body is read only with a permit: requests beyond the cap wait here, their bodies
+    // unread, so memory stays bounded however many arrive at once.
+    let Ok(_permit) = Arc::clone(&shared.requests).acquire_owned().await else {
+        return error_response(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the server is stopping".into(),
+            None,
+        );
+    };
+    let limit = shared.opts.limits.request_timeout;
+    let read = Limited::new(req.into_body(), shared.opts.max_body_bytes).collect();
+    let Ok(read) = tokio::time::timeout(limit, read).await else {
+        return error_response(
+            StatusCode::REQUEST_TIMEOUT,
+            format!("the request body did not arrive within {limit:?}"),
+            None,
+        );
+    };
+    let body = match read {
         Ok(b) => b.to_bytes(),
         Err(e) if e.is::<LengthLimitError>() => {
             return error_response(
@@ -254,6 +289,24 @@ fn run(shared: &Shared, body: &[u8]) -> Result<PlannerOutput, Refusal> {
             .map_err(|e| bad(format!("cameras[{i}].calibration: {e}")))?;
         calibs.push(calib);
     }
+    // What decoding would cost, known from the calibrations before any image is read.
+    let pixels: u64 = req
+        .cameras
+        .iter()
+        .zip(&calibs)
+        .map(|(cam, c)| cam.frames.len() as u64 * u64::from(c.width) * u64::from(c.height))
+        .sum();
+    let cap = shared.opts.limits.max_request_pixels;
+    if pixels > cap {
+        return Err((
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!(
+                "the request's frames hold {pixels} pixels (frames x width x height), more than \
+                 this server's limit of {cap}"
+            ),
+            None,
+        ));
+    }
     // Every frame, oldest first per camera, decoded on all cores.
     let mut jobs = Vec::new();
     for (i, cam) in req.cameras.iter().enumerate() {
@@ -285,13 +338,8 @@ fn run(shared: &Shared, body: &[u8]) -> Result<PlannerOutput, Refusal> {
         let bytes = b64
             .decode(f.data.as_bytes())
             .map_err(|e| bad(format!("{at}: data is not base64: {e}")))?;
-        let img = codec::decode(&bytes).map_err(|e| bad(format!("{at}: {e}")))?;
-        if (img.width, img.height) != (calib.width, calib.height) {
-            return Err(bad(format!(
-                "{at}: the image is {}x{} but the calibration says {}x{}",
-                img.width, img.height, calib.width, calib.height
-            )));
-        }
+        let img = codec::decode_sized(&bytes, calib.width, calib.height, "the calibration")
+            .map_err(|e| bad(format!("{at}: {e}")))?;
         Ok(img.rgb)
     })
     .into_iter();

@@ -439,11 +439,31 @@ fn cameras_map_by_name_by_option_or_as_the_widest_forward_camera() {
 }
 
 #[test]
-fn shut_down_stops_the_server() {
+fn shut_down_is_refused_by_default_and_stops_the_server_when_allowed() {
+    // Off by default: any local peer could call it.
     let server = egodriver::serve(
         loopback(),
         Fake::new(Behaviour::Straight),
         ServeOptions::default(),
+    )
+    .unwrap();
+    let addr = server.local_addr();
+    runtime().block_on(async {
+        let mut rpc = connect(addr).await;
+        let e = rpc.shut_down(Empty {}).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::PermissionDenied, "{e}");
+        // Still serving.
+        rpc.get_version(Empty {}).await.unwrap();
+    });
+    server.shutdown().unwrap();
+
+    let server = egodriver::serve(
+        loopback(),
+        Fake::new(Behaviour::Straight),
+        ServeOptions {
+            allow_shut_down: true,
+            ..ServeOptions::default()
+        },
     )
     .unwrap();
     let addr = server.local_addr();
@@ -461,4 +481,33 @@ fn shut_down_stops_the_server() {
         std::thread::sleep(Duration::from_millis(20));
     }
     waiter.join().unwrap().unwrap();
+}
+
+#[test]
+fn a_session_declaring_more_pixels_than_the_cap_is_refused() {
+    // One 640 × 360 camera × 4 frames is 921,600 pixels: a cap one below refuses it.
+    let server = egodriver::serve(
+        loopback(),
+        Fake::new(Behaviour::Straight),
+        ServeOptions {
+            limits: fogline_remote::Limits {
+                max_request_pixels: 640 * 360 * 4 - 1,
+                ..fogline_remote::Limits::default()
+            },
+            ..ServeOptions::default()
+        },
+    )
+    .unwrap();
+    let addr = server.local_addr();
+    runtime().block_on(async {
+        let mut rpc = connect(addr).await;
+        let cam = camera("front", 120.0, 0.0, 0.0, 2);
+        let e = rpc
+            .start_session(start_request("s1", vec![cam], Some(2)))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), Code::ResourceExhausted, "{e}");
+        assert!(e.message().contains("921600 pixels"), "{}", e.message());
+    });
+    server.shutdown().unwrap();
 }

@@ -85,3 +85,165 @@ fn health_errors_and_status_codes() {
     assert_eq!(body["kind"], "input");
     server.shutdown().unwrap();
 }
+
+fn png_b64(width: u32, height: u32) -> String {
+    use base64::Engine as _;
+    let img = image::RgbImage::from_pixel(width, height, image::Rgb([90, 90, 90]));
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+    base64::engine::general_purpose::STANDARD.encode(out.into_inner())
+}
+
+fn one_frame_request(width: u32, height: u32, frames: usize, png: &str) -> String {
+    let frames: Vec<String> = (0..frames)
+        .map(|j| format!(r#"{{"t_s":-{j}.0,"image_format":"png","data":"{png}"}}"#))
+        .collect();
+    format!(
+        r#"{{"scene_id":"s","seed":1,"cameras":[{{"id":"front_wide",
+        "calibration":{{"width":{width},"height":{height},"fx":100,"fy":100,"cx":{cx},"cy":{cy},"x_m":0,"y_m":0,"z_m":1.5,"yaw_rad":0,"pitch_rad":0}},
+        "frames":[{}]}}],"ego_history":[]}}"#,
+        frames.join(","),
+        cx = width / 2,
+        cy = height / 2
+    )
+}
+
+/// CRC-32 (IEEE), as PNG chunks carry it.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 == 1 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+#[test]
+fn pixels_are_bounded_before_anything_is_decoded() {
+    let limits = fogline_remote::Limits {
+        max_request_pixels: 1_000_000,
+        ..fogline_remote::Limits::default()
+    };
+    let server = http::serve(
+        loopback(),
+        Fake::new(Behaviour::Straight),
+        ServeOptions {
+            limits,
+            ..ServeOptions::default()
+        },
+    )
+    .unwrap();
+    let addr = server.local_addr();
+    // Four 600 × 600 frames declared: 1.44 M pixels, over the cap of 1 M → 413, unread.
+    let small = png_b64(4, 4);
+    let (status, body) = raw(
+        addr,
+        "POST",
+        "/v1/plan",
+        &one_frame_request(600, 600, 4, &small),
+    );
+    assert_eq!(status, 413, "{body}");
+    let e = body["error"].as_str().unwrap();
+    assert!(e.contains("1440000 pixels") && e.contains("1000000"), "{e}");
+    // A frame whose header claims 12000 × 12000 in a request declaring 400 × 400: refused
+    // from the header, before its 432 MB are allocated.
+    let huge = {
+        use base64::Engine as _;
+        use image::ImageEncoder as _;
+        let mut png = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(
+                &vec![0u8; 12000 * 3],
+                12000,
+                1,
+                image::ExtendedColorType::Rgb8,
+            )
+            .unwrap();
+        // Patch the IHDR height (bytes 20..24) to 12000, with the chunk's CRC: the header
+        // alone says 12000².
+        png[20..24].copy_from_slice(&12000u32.to_be_bytes());
+        let crc = crc32(&png[12..29]);
+        png[29..33].copy_from_slice(&crc.to_be_bytes());
+        base64::engine::general_purpose::STANDARD.encode(png)
+    };
+    let (status, body) = raw(
+        addr,
+        "POST",
+        "/v1/plan",
+        &one_frame_request(400, 400, 1, &huge),
+    );
+    assert_eq!(status, 400, "{body}");
+    let e = body["error"].as_str().unwrap();
+    assert!(
+        e.contains("12000x12000 but the calibration says 400x400"),
+        "{e}"
+    );
+    // Within the caps it plans.
+    let (status, body) = raw(
+        addr,
+        "POST",
+        "/v1/plan",
+        &one_frame_request(400, 400, 4, &png_b64(400, 400)),
+    );
+    assert_ne!(status, 413, "{body}");
+    server.shutdown().unwrap();
+}
+
+#[test]
+fn idle_and_half_sent_connections_are_closed_and_excess_ones_shed() {
+    let limits = fogline_remote::Limits {
+        max_connections: 8,
+        idle_timeout: Duration::from_millis(300),
+        header_timeout: Duration::from_millis(300),
+        ..fogline_remote::Limits::default()
+    };
+    let server = http::serve(
+        loopback(),
+        Fake::new(Behaviour::Straight),
+        ServeOptions {
+            limits,
+            ..ServeOptions::default()
+        },
+    )
+    .unwrap();
+    let addr = server.local_addr();
+    let closed_within = |s: &mut TcpStream, d: Duration| {
+        s.set_read_timeout(Some(d)).unwrap();
+        let mut buf = [0u8; 512];
+        // EOF or a reset: the server closed it; a timeout: still open.
+        !matches!(s.read(&mut buf), Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut))
+    };
+    // Eight connections fill the server: silent ones and ones with half a header.
+    let mut held: Vec<TcpStream> = (0..8)
+        .map(|i| {
+            let mut s = TcpStream::connect(addr).unwrap();
+            if i % 2 == 1 {
+                s.write_all(b"GET /v1/health HTTP/1.1\r\nHo").unwrap();
+            }
+            s
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(100));
+    // A ninth is closed as it arrives.
+    let mut ninth = TcpStream::connect(addr).unwrap();
+    assert!(
+        closed_within(&mut ninth, Duration::from_secs(2)),
+        "the ninth was kept"
+    );
+    // The held ones are closed once idle, and then the server answers again.
+    for (i, s) in held.iter_mut().enumerate() {
+        assert!(
+            closed_within(s, Duration::from_secs(5)),
+            "connection {i} was kept open"
+        );
+    }
+    let (status, _) = raw(addr, "GET", "/v1/health", "");
+    assert_eq!(status, 200);
+    server.shutdown().unwrap();
+}
