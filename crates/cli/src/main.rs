@@ -4,6 +4,7 @@
 //! stderr and prints its primary output on stdout. Exit codes: 0 success, 1 a gate failed
 //! (e.g. a scenario rejected under `--pi-star`), 2 error (the whole error chain is printed).
 
+mod backend_args;
 mod bench_campaign;
 mod campaign_cmd;
 mod perturb_cmd;
@@ -18,7 +19,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand};
 use fogline_envelope::{
     Bands, BootstrapMethod, EnvelopeParams, ReadOptions, TaxonomyChoice, ThresholdRule,
 };
@@ -90,29 +91,6 @@ enum Command {
     Report(report_cmd::ReportArgs),
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum RuleArg {
-    FirstViolation,
-    MaxPassing,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum BootMethodArg {
-    Auto,
-    Multinomial,
-    Poisson,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum TaxonomyArg {
-    /// The paper's seven classes + OTHER when the data uses them, else the data's labels.
-    Auto,
-    /// The paper's seven classes + OTHER.
-    Paper,
-    /// The labels found in the data (OTHER excluded).
-    Data,
-}
-
 #[derive(Args)]
 struct AnalysisArgs {
     /// ADE budgets (relative), comma-separated.
@@ -121,16 +99,16 @@ struct AnalysisArgs {
     /// The headline budget (must be one of --budgets).
     #[arg(long, default_value_t = 0.15)]
     headline: f64,
-    /// Threshold rule.
-    #[arg(long, value_enum, default_value = "first-violation")]
-    rule: RuleArg,
+    /// Threshold rule: `first-violation` or `max-passing`.
+    #[arg(long, default_value = "first-violation")]
+    rule: ThresholdRule,
     /// Clip-level bootstrap resamples (0 = off).
     #[arg(long, default_value_t = 10_000)]
     bootstrap: usize,
     /// Bootstrap resampling: `multinomial` (classic), `poisson` (clip weights), or `auto`
     /// (multinomial up to 100,000 clips).
-    #[arg(long, value_enum, default_value = "auto")]
-    bootstrap_method: BootMethodArg,
+    #[arg(long, default_value = "auto")]
+    bootstrap_method: BootstrapMethod,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -145,7 +123,7 @@ struct AnalysisArgs {
     n_init: usize,
     /// Number of severity bands: `auto` (BIC) or a fixed K.
     #[arg(long, default_value = "auto")]
-    bands: String,
+    bands: Bands,
     /// How many top bands count as high severity.
     #[arg(long, default_value_t = 2)]
     high_bands: usize,
@@ -167,9 +145,10 @@ struct AnalysisArgs {
     /// Family whose threshold forms the ODD entry.
     #[arg(long, default_value = "gaussian_noise")]
     odd_family: String,
-    /// Scenario taxonomy.
-    #[arg(long, value_enum, default_value = "auto")]
-    taxonomy: TaxonomyArg,
+    /// Scenario taxonomy: `auto` (the paper's seven classes + OTHER when the data uses
+    /// them, else the data's labels), `paper`, or `data` (the labels found, OTHER excluded).
+    #[arg(long, default_value = "auto")]
+    taxonomy: TaxonomyChoice,
     /// TOML file of action keyword rules (`[[action]]` tables with `name` and `keywords`).
     #[arg(long)]
     actions: Option<PathBuf>,
@@ -260,45 +239,24 @@ fn run(cli: Cli) -> Result<ExitCode> {
 }
 
 fn params(a: &AnalysisArgs) -> Result<EnvelopeParams> {
-    let bands =
-        match a.bands.as_str() {
-            "auto" => Bands::Auto,
-            k => Bands::Fixed(k.parse().with_context(|| {
-                format!("--bands: expected `auto` or a whole number, got {k:?}")
-            })?),
-        };
     let p = EnvelopeParams {
         budgets: a.budgets.clone(),
         headline_budget: a.headline,
-        rule: match a.rule {
-            RuleArg::FirstViolation => ThresholdRule::FirstViolation,
-            RuleArg::MaxPassing => ThresholdRule::MaxPassing,
-        },
+        rule: a.rule,
         bootstrap: a.bootstrap,
-        bootstrap_method: match a.bootstrap_method {
-            BootMethodArg::Auto => BootstrapMethod::Auto,
-            BootMethodArg::Multinomial => BootstrapMethod::Multinomial,
-            BootMethodArg::Poisson => BootstrapMethod::Poisson,
-        },
+        bootstrap_method: a.bootstrap_method,
         seed: a.seed,
         k_max: a.k_max,
         restarts: a.restarts,
         n_init: a.n_init,
-        bands,
+        bands: a.bands,
         high_bands: a.high_bands,
         pi_star: a.pi_star,
         sigma_op: a.sigma_op,
         min_clips: a.min_clips,
         l2_aggregation: a.l2.clone(),
         odd_family: a.odd_family.clone(),
-        taxonomy: match a.taxonomy {
-            TaxonomyArg::Auto => TaxonomyChoice::Auto,
-            TaxonomyArg::Paper => TaxonomyChoice::Given(fogline_types::Taxonomy::paper()),
-            TaxonomyArg::Data => TaxonomyChoice::Given(fogline_types::Taxonomy {
-                classes: Vec::new(),
-                other: fogline_types::scenario::OTHER.into(),
-            }),
-        },
+        taxonomy: a.taxonomy.clone(),
         ..EnvelopeParams::default()
     };
     p.validate().context("invalid analysis parameters")?;

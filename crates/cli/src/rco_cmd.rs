@@ -8,10 +8,12 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Subcommand, ValueEnum};
+use clap::{Args, Subcommand};
 use fogline_rco::{
-    Backend, Modules, OpenAiBackend, OpenAiParams, Rco, RcoParams, RulesBackend, replay,
+    Backend, HostileBackend, Modules, OpenAiBackend, Rco, RcoParams, RulesBackend, replay,
 };
+
+use crate::backend_args::{BackendArg, OpenAiArgs};
 
 /// Arguments of `fogline rco`.
 #[derive(Args)]
@@ -36,14 +38,6 @@ enum RcoCommand {
     Bench(BenchArgs),
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum BackendArg {
-    /// Offline, deterministic commonsense rules.
-    Rules,
-    /// An OpenAI-compatible /v1/chat/completions server.
-    Openai,
-}
-
 #[derive(Args)]
 struct ReplayArgs {
     /// Recorded observations: JSON Lines, one observation per line.
@@ -64,18 +58,8 @@ struct ReplayArgs {
     /// Print every decision as one JSON line instead of the table.
     #[arg(long)]
     json: bool,
-    /// openai: the server's base URL (http only).
-    #[arg(long, default_value = "http://127.0.0.1:8000")]
-    url: String,
-    /// openai: the model name.
-    #[arg(long, default_value = "Qwen/Qwen2-VL-2B-Instruct")]
-    model: String,
-    /// openai: the environment variable holding the API key (never printed).
-    #[arg(long, default_value = "OPENAI_API_KEY")]
-    api_key_env: String,
-    /// openai: the time limit of one call, ms.
-    #[arg(long, default_value_t = 20_000)]
-    timeout_ms: u64,
+    #[command(flatten)]
+    openai: OpenAiArgs,
 }
 
 #[derive(Args)]
@@ -123,16 +107,11 @@ fn replay_cmd(a: ReplayArgs) -> Result<ExitCode> {
     params.verifier.hazard_ratio = a.hazard_ratio;
     let backend: Box<dyn Backend> = match a.backend {
         BackendArg::Rules => Box::new(RulesBackend::default()),
-        BackendArg::Openai => Box::new(
-            OpenAiBackend::new(OpenAiParams {
-                base_url: a.url.clone(),
-                model: a.model.clone(),
-                api_key_env: a.api_key_env.clone(),
-                timeout_ms: a.timeout_ms,
-                ..OpenAiParams::default()
-            })
-            .with_context(|| format!("--backend openai --url {}", a.url))?,
-        ),
+        BackendArg::Openai => {
+            Box::new(OpenAiBackend::new(a.openai.params()?).context("--backend openai")?)
+        }
+        BackendArg::Hostile => Box::new(HostileBackend { weak_brakes: false }),
+        BackendArg::HostileWeakBrakes => Box::new(HostileBackend { weak_brakes: true }),
     };
     let mut rco = Rco::new(params, backend).context("invalid controller settings")?;
     log::info!(

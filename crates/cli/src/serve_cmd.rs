@@ -1,7 +1,6 @@
 //! `fogline serve`: the reference planner behind an endpoint, over AlpaSim's egodriver gRPC
 //! contract or fogline's HTTP/JSON protocol (see `docs/remote.md`).
 
-use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::net::SocketAddr;
 use std::process::ExitCode;
@@ -11,7 +10,6 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use fogline_campaign::BuiltinPlanner;
 use fogline_remote::{Limits, Planner, egodriver, http};
-use fogline_types::clip::CameraId;
 
 /// The protocol to serve.
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -45,8 +43,8 @@ pub struct ServeArgs {
     #[arg(long, default_value_t = Limits::default().max_connections)]
     max_connections: usize,
     /// Seconds a connection may send nothing before it is closed.
-    #[arg(long, default_value_t = Limits::default().idle_timeout.as_secs_f64())]
-    idle_timeout: f64,
+    #[arg(long, default_value_t = Limits::default().idle_timeout.as_secs())]
+    idle_timeout: u64,
     /// Requests read, decoded and planned at once; more wait their turn.
     #[arg(long, default_value_t = Limits::default().max_concurrent_requests)]
     max_concurrent: usize,
@@ -56,43 +54,15 @@ pub struct ServeArgs {
 }
 
 fn limits(a: &ServeArgs) -> Result<Limits> {
-    if !(a.idle_timeout.is_finite() && a.idle_timeout > 0.0 && a.idle_timeout < 1e6) {
-        bail!(
-            "--idle-timeout: expected a positive number of seconds, got {}",
-            a.idle_timeout
-        );
-    }
     let l = Limits {
         max_connections: a.max_connections,
-        idle_timeout: std::time::Duration::from_secs_f64(a.idle_timeout),
+        idle_timeout: std::time::Duration::from_secs(a.idle_timeout),
         max_concurrent_requests: a.max_concurrent,
         max_request_pixels: a.max_pixels,
         ..Limits::default()
     };
-    l.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+    l.validate().map_err(anyhow::Error::msg)?;
     Ok(l)
-}
-
-fn camera_map(entries: &[String]) -> Result<BTreeMap<String, CameraId>> {
-    let mut map = BTreeMap::new();
-    for e in entries {
-        let Some((logical, camera)) = e.split_once('=') else {
-            bail!(
-                "--camera-map {e:?}: expected LOGICAL=CAMERA, e.g. front=camera_front_wide_120fov"
-            );
-        };
-        let Some(id) = CameraId::parse(camera.trim()) else {
-            let names: Vec<&str> = CameraId::ALL.iter().map(|c| c.name()).collect();
-            bail!(
-                "--camera-map {e:?}: {camera:?} is not a camera name (one of {})",
-                names.join(", ")
-            );
-        };
-        if map.insert(logical.trim().to_string(), id).is_some() {
-            bail!("--camera-map: {logical:?} is mapped twice");
-        }
-    }
-    Ok(map)
 }
 
 /// Runs `fogline serve …` until Ctrl-C or SIGTERM (or, for egodriver, a `shut_down` call).
@@ -115,7 +85,8 @@ pub fn serve(a: ServeArgs) -> Result<ExitCode> {
             addr,
             planner,
             egodriver::ServeOptions {
-                camera_map: camera_map(&a.camera_map)?,
+                camera_map: egodriver::parse_camera_map(&a.camera_map)
+                    .map_err(anyhow::Error::msg)?,
                 allow_shut_down: a.allow_remote_shutdown,
                 limits,
                 ..egodriver::ServeOptions::default()

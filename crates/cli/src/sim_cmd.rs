@@ -7,13 +7,14 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Subcommand, ValueEnum};
-use fogline_rco::OpenAiParams;
+use clap::{Args, Subcommand};
 use fogline_sim::config::{BackendSetup, ConfigSet, configs};
 use fogline_sim::experiment::ExperimentParams;
 use fogline_sim::run::RunParams;
 use fogline_sim::sense::DeficitKind;
 use fogline_sim::suite::SuiteParams;
+
+use crate::backend_args::{BackendArg, OpenAiArgs};
 
 /// Arguments of `fogline sim`.
 #[derive(Args)]
@@ -30,14 +31,6 @@ enum SimCommand {
         after_help = "Examples:\n  fogline sim run --quick --out sim-quick\n  fogline sim run --out sim-results\n  fogline sim run --configs main,ablation,sweep --seeds 3 --out sim-all\n  fogline sim run --quick --backend openai --url http://127.0.0.1:8000 --model Qwen/Qwen2-VL-2B-Instruct"
     )]
     Run(Box<RunArgs>),
-}
-
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum BackendArg {
-    /// Offline, deterministic commonsense rules.
-    Rules,
-    /// An OpenAI-compatible /v1/chat/completions server.
-    Openai,
 }
 
 #[derive(Args)]
@@ -77,18 +70,8 @@ struct RunArgs {
     /// Who answers the RCO controller's queries.
     #[arg(long, value_enum, default_value = "rules")]
     backend: BackendArg,
-    /// openai: the server's base URL (http only).
-    #[arg(long, default_value = "http://127.0.0.1:8000")]
-    url: String,
-    /// openai: the model name.
-    #[arg(long, default_value = "Qwen/Qwen2-VL-2B-Instruct")]
-    model: String,
-    /// openai: the environment variable holding the API key (never printed).
-    #[arg(long, default_value = "OPENAI_API_KEY")]
-    api_key_env: String,
-    /// openai: the limit of one call, ms.
-    #[arg(long, default_value_t = 20_000)]
-    timeout_ms: u64,
+    #[command(flatten)]
+    openai: OpenAiArgs,
     /// Latency counted per LLM call for system time, ms, or `measured`.
     #[arg(long, default_value = "1000")]
     llm_latency_ms: String,
@@ -164,18 +147,9 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     };
     let backend = match a.backend {
         BackendArg::Rules => BackendSetup::Rules,
-        BackendArg::Openai => {
-            let p = OpenAiParams {
-                base_url: a.url.clone(),
-                model: a.model.clone(),
-                api_key_env: a.api_key_env.clone(),
-                timeout_ms: a.timeout_ms,
-                ..OpenAiParams::default()
-            };
-            p.parsed_url()
-                .with_context(|| format!("--backend openai --url {}", a.url))?;
-            BackendSetup::Openai(p)
-        }
+        BackendArg::Hostile => BackendSetup::Hostile { weak_brakes: false },
+        BackendArg::HostileWeakBrakes => BackendSetup::Hostile { weak_brakes: true },
+        BackendArg::Openai => BackendSetup::Openai(a.openai.params()?),
     };
     let mut run_params = RunParams {
         stop_sign_penalty: a.stop_sign_penalty,

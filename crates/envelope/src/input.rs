@@ -560,8 +560,9 @@ impl<'o> Builder<'o> {
 
     fn distance(&self, row: u64, col: Col, cell: Cell<'_>) -> Result<f64> {
         let x = self.number(row, col, cell)?;
-        if x < 0.0 {
-            return Err(self.bad(row, col, &cell, "a distance in metres (>= 0)"));
+        // A trajectory error beyond 100 km is not a measurement but a corrupt cell.
+        if !(0.0..=MAX_DISTANCE_M).contains(&x) {
+            return Err(self.bad(row, col, &cell, "a distance in metres (0 to 100000)"));
         }
         Ok(x)
     }
@@ -1027,6 +1028,10 @@ fn read_jsonl<R: Read>(src: R, b: &mut Builder<'_>) -> Result<()> {
     }
     Ok(())
 }
+
+/// The largest distance a pairs table may hold, m: a displacement error beyond it is not a
+/// measurement of a 6.4 s trajectory but a corrupt value.
+pub const MAX_DISTANCE_M: f64 = 100_000.0;
 
 // ---------------------------------------------------------------------------------------------
 // Parquet

@@ -66,6 +66,68 @@ pub enum TaxonomyChoice {
     Given(Taxonomy),
 }
 
+impl std::str::FromStr for ThresholdRule {
+    type Err = String;
+
+    /// `first-violation` or `max-passing`.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        [Self::FirstViolation, Self::MaxPassing]
+            .into_iter()
+            .find(|r| r.name() == s)
+            .ok_or_else(|| format!("expected `first-violation` or `max-passing`, got {s:?}"))
+    }
+}
+
+impl std::str::FromStr for BootstrapMethod {
+    type Err = String;
+
+    /// `auto`, `multinomial` or `poisson`.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            "multinomial" => Ok(Self::Multinomial),
+            "poisson" => Ok(Self::Poisson),
+            _ => Err(format!(
+                "expected `auto`, `multinomial` or `poisson`, got {s:?}"
+            )),
+        }
+    }
+}
+
+impl std::str::FromStr for TaxonomyChoice {
+    type Err = String;
+
+    /// `auto` (the paper's classes when the data has any of them, else the data's labels),
+    /// `paper` (exactly the paper's seven classes + OTHER) or `data` (the labels found in
+    /// the data, OTHER excluded).
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            "paper" => Ok(Self::Given(Taxonomy::paper())),
+            "data" => Ok(Self::Given(Taxonomy {
+                classes: Vec::new(),
+                other: fogline_types::scenario::OTHER.into(),
+            })),
+            _ => Err(format!("expected `auto`, `paper` or `data`, got {s:?}")),
+        }
+    }
+}
+
+impl std::str::FromStr for Bands {
+    type Err = String;
+
+    /// `auto` or a whole number of bands.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            k => k
+                .parse()
+                .map(Self::Fixed)
+                .map_err(|_| format!("expected `auto` or a whole number, got {k:?}")),
+        }
+    }
+}
+
 /// Parameters of [`crate::analyze`]. Defaults follow the envelope paper.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]

@@ -510,20 +510,9 @@ fn envelope_analyze(
         serde_json::from_str(params).map_err(|e| value_error("parameters", e))?;
     // As the CLI's --taxonomy: the paper's classes when the data has any of them, exactly
     // the paper's, or the labels found in the data.
-    p.taxonomy = match taxonomy {
-        "auto" => TaxonomyChoice::Auto,
-        "paper" => TaxonomyChoice::Given(fogline_types::Taxonomy::paper()),
-        "data" => TaxonomyChoice::Given(fogline_types::Taxonomy {
-            classes: Vec::new(),
-            other: fogline_types::scenario::OTHER.into(),
-        }),
-        other => {
-            return Err(value_error(
-                "taxonomy",
-                format!("expected \"auto\", \"paper\" or \"data\", got {other:?}"),
-            ));
-        }
-    };
+    p.taxonomy = taxonomy
+        .parse::<TaxonomyChoice>()
+        .map_err(|e| value_error("taxonomy", e))?;
     p.validate().map_err(|e| value_error("parameters", e))?;
     let (schema, batches) = arrow_batches(table)?;
     let opts = fogline_envelope::ReadOptions {

@@ -303,6 +303,10 @@ pub struct Decision {
     pub constraints: Option<SafetyConstraints>,
     /// Which constraints triggered.
     pub triggers: Triggers,
+    /// Whether the shield overrode the action: a front view showed an immediate hazard in
+    /// its pixels and the action was not a stop, so the car stops (quick deceleration)
+    /// whatever the plan said.
+    pub shielded: bool,
     /// Steps left in the sequence.
     pub plan_remaining: usize,
     /// Counters.
@@ -507,6 +511,7 @@ impl Rco {
                 consistent: false,
                 constraints: self.constraints,
                 triggers: Triggers::default(),
+                shielded: false,
                 plan_remaining: 0,
                 counters: self.counters_now(&stats),
             };
@@ -533,7 +538,19 @@ impl Rco {
                 let r = self.query_constraints(&assessment, &mut stats);
                 self.constraints_tick = obs.tick;
                 match r {
-                    Ok(sc) => self.constraints = Some(sc),
+                    Ok(sc) => {
+                        // Held inside fogline's hard limits: an answer only tightens them.
+                        let env = obs.surroundings.traffic_env;
+                        let (kept, changed) = sc.within(&self.params.safety.hard, env);
+                        if !changed.is_empty() {
+                            log::debug!(
+                                "tick {}: the answer's {} tightened to the hard limits",
+                                obs.tick,
+                                changed.join(", ")
+                            );
+                        }
+                        self.constraints = Some(kept);
+                    }
                     Err(f) => {
                         self.constraints = Some(SafetyConstraints::conservative());
                         fallback = Some(f);
@@ -650,8 +667,25 @@ impl Rco {
             self.counters.fallbacks_total += 1;
             executed = None;
         }
-        let (source, action, condition) =
+        let (source, planned, condition) =
             executed.unwrap_or((Source::Fallback, Action::STOP, None));
+        // The shield: an immediate hazard in a front view's pixels always brakes, whatever
+        // the backend planned (a plan made before it appeared, or an answer that ignores it).
+        let stopping = planned.behavior == Behavior::Stop
+            && matches!(
+                planned.speed,
+                SpeedControl::QuickDeceleration | SpeedControl::DecelerationToZero
+            );
+        let hazard_ahead = assessment.front_immediate();
+        let shielded = hazard_ahead && !stopping;
+        let action = if shielded {
+            Action {
+                behavior: Behavior::Stop,
+                speed: SpeedControl::QuickDeceleration,
+            }
+        } else {
+            planned
+        };
 
         let p = pedals(action.speed, self.prev_throttle);
         let nav = &obs.navigation;
@@ -667,7 +701,14 @@ impl Rco {
         let (control, triggers, constraints) =
             match (self.params.modules.safety_constraints, self.constraints) {
                 (true, Some(sc)) => {
-                    let (c, t) = safety::apply(raw, &obs.ego, &sc, &self.params.safety);
+                    let env = obs.surroundings.traffic_env;
+                    let (sc, _) = sc.within(&self.params.safety.hard, env);
+                    let (mut c, t) = safety::apply(raw, &obs.ego, &sc, &self.params.safety);
+                    if hazard_ahead {
+                        // With a hazard ahead the constraints may only add braking.
+                        c.brake = c.brake.max(raw.brake);
+                        c.throttle = c.throttle.min(raw.throttle);
+                    }
                     (c, t, Some(sc))
                 }
                 _ => (raw, Triggers::default(), None),
@@ -695,6 +736,7 @@ impl Rco {
             observed: assessment.views,
             constraints,
             triggers,
+            shielded,
             plan_remaining: self.plan.len(),
             counters: self.counters_now(&stats),
         }

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::RcoError;
 use crate::control::Control;
-use crate::observation::EgoState;
+use crate::observation::{EgoState, TrafficEnv};
 
 /// The safety constraints `SC_t`, in the units of the paper's prompt.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -102,6 +102,133 @@ impl SafetyConstraints {
     }
 }
 
+/// fogline's hard limits: the envelope every set of safety constraints is held inside,
+/// whoever produced it. An answer can tighten them, never loosen them: the model that plans
+/// is not trusted to set the bounds that check its plans (docs/security.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct HardLimits {
+    /// The road speed limit of each traffic environment, km/h: urban, suburban, rural,
+    /// highway (CARLA's town limits; the rules backend's base speeds).
+    pub speed_limit_kmh: [f64; 4],
+    /// The shortest following time gap an answer may set, s.
+    pub min_gap_s: f64,
+    /// The highest acceleration limit an answer may set, m/s².
+    pub max_acceleration_mps2: f64,
+    /// The deceleration limit `de_max` an answer may set lies in this range, m/s²: below it
+    /// a model would take braking authority away (table 5's deceleration row lowers the
+    /// brake past `de_max`), above it it would assume braking the car does not have.
+    pub deceleration_mps2: [f64; 2],
+    /// The highest yaw-rate limit an answer may set, °/s.
+    pub max_yaw_rate_dps: f64,
+}
+
+impl Default for HardLimits {
+    fn default() -> Self {
+        Self {
+            speed_limit_kmh: [50.0, 60.0, 80.0, 100.0],
+            min_gap_s: 1.0,
+            max_acceleration_mps2: 2.5,
+            deceleration_mps2: [2.5, 8.0],
+            max_yaw_rate_dps: 30.0,
+        }
+    }
+}
+
+impl HardLimits {
+    /// The road speed limit in `env`, km/h.
+    pub fn speed_limit(&self, env: TrafficEnv) -> f64 {
+        self.speed_limit_kmh[match env {
+            TrafficEnv::Urban => 0,
+            TrafficEnv::Suburban => 1,
+            TrafficEnv::Rural => 2,
+            TrafficEnv::Highway => 3,
+        }]
+    }
+
+    /// Checks the limits are physically meaningful.
+    pub fn validate(&self) -> Result<(), RcoError> {
+        let [lo, hi] = self.deceleration_mps2;
+        let ok = self
+            .speed_limit_kmh
+            .iter()
+            .chain([
+                &self.min_gap_s,
+                &self.max_acceleration_mps2,
+                &lo,
+                &hi,
+                &self.max_yaw_rate_dps,
+            ])
+            .all(|v| v.is_finite() && *v > 0.0)
+            && lo <= hi;
+        if ok {
+            Ok(())
+        } else {
+            Err(RcoError::Params(format!(
+                "safety.hard: every limit must be finite and > 0, and the deceleration range \
+                 ordered: {self:?}"
+            )))
+        }
+    }
+}
+
+impl SafetyConstraints {
+    /// These constraints held inside `hard` in traffic environment `env`: each one tightened
+    /// to the hard limit where it is looser (the speed to the road limit, the gap up to the
+    /// minimum gap, the acceleration and yaw-rate limits down, the deceleration limit into
+    /// its range, the braking distance down to what the speed and deceleration kept imply),
+    /// and the names of those that were changed.
+    pub fn within(&self, hard: &HardLimits, env: TrafficEnv) -> (Self, Vec<&'static str>) {
+        let mut changed = Vec::new();
+        let mut pick = |name: &'static str, v: f64, bounded: f64| {
+            if bounded != v {
+                changed.push(name);
+            }
+            bounded
+        };
+        let [de_lo, de_hi] = hard.deceleration_mps2;
+        let max_speed_kmh = pick(
+            "max_speed_kmh",
+            self.max_speed_kmh,
+            self.max_speed_kmh.min(hard.speed_limit(env)),
+        );
+        let max_deceleration_mps2 = pick(
+            "max_deceleration_mps2",
+            self.max_deceleration_mps2,
+            self.max_deceleration_mps2.clamp(de_lo, de_hi),
+        );
+        // The braking distance the kept speed and deceleration need, in the rules
+        // backend's 5 m steps (at least 5 m): a longer one would trigger braking later.
+        let v = max_speed_kmh / 3.6;
+        let d_need = ((v * v / (2.0 * max_deceleration_mps2)) / 5.0).ceil() * 5.0;
+        let out = Self {
+            max_speed_kmh,
+            min_following_distance_s: pick(
+                "min_following_distance_s",
+                self.min_following_distance_s,
+                self.min_following_distance_s.max(hard.min_gap_s),
+            ),
+            max_acceleration_mps2: pick(
+                "max_acceleration_mps2",
+                self.max_acceleration_mps2,
+                self.max_acceleration_mps2.min(hard.max_acceleration_mps2),
+            ),
+            max_deceleration_mps2,
+            max_yaw_rate_dps: pick(
+                "max_yaw_rate_dps",
+                self.max_yaw_rate_dps,
+                self.max_yaw_rate_dps.min(hard.max_yaw_rate_dps),
+            ),
+            min_braking_distance_m: pick(
+                "min_braking_distance_m",
+                self.min_braking_distance_m,
+                self.min_braking_distance_m.min(d_need.max(5.0)),
+            ),
+        };
+        (out, changed)
+    }
+}
+
 /// Settings of the safety constraint module.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -114,6 +241,8 @@ pub struct SafetyParams {
     pub standstill_gap_m: f64,
     /// Ticks between two constraint refreshes (the constraints change slowly).
     pub refresh_ticks: u64,
+    /// The envelope every answer's constraints are held inside ([`HardLimits`]).
+    pub hard: HardLimits,
 }
 
 impl Default for SafetyParams {
@@ -123,6 +252,7 @@ impl Default for SafetyParams {
             delta_brake: 0.2,
             standstill_gap_m: 2.0,
             refresh_ticks: 50,
+            hard: HardLimits::default(),
         }
     }
 }
@@ -144,7 +274,7 @@ impl SafetyParams {
         if self.refresh_ticks == 0 {
             return Err(RcoError::Params("safety.refresh_ticks must be >= 1".into()));
         }
-        Ok(())
+        self.hard.validate()
     }
 }
 

@@ -218,6 +218,14 @@ impl Assessment {
             .map_or(HazardState::ImmediateHazard, |v| v.state)
     }
 
+    /// Whether a front view (a camera looking along the rig's x axis) shows an immediate
+    /// hazard: what the rules backend stops for and the controller's shield enforces.
+    pub fn front_immediate(&self) -> bool {
+        self.views
+            .iter()
+            .any(|v| is_front(v.camera) && v.state == HazardState::ImmediateHazard)
+    }
+
     /// The observed states as a condition (what a plan made now would require).
     pub fn observed(&self) -> Condition {
         Condition {
@@ -588,6 +596,11 @@ pub fn check_consistency(
         }
     }
     Ok(())
+}
+
+/// Whether `camera` looks forward (along the rig's x axis).
+pub fn is_front(camera: CameraId) -> bool {
+    camera.yaw_rad() == 0.0
 }
 
 #[cfg(test)]

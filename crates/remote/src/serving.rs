@@ -30,8 +30,9 @@ pub struct Limits {
     pub header_timeout: Duration,
     /// HTTP: the whole body must arrive within this; gRPC: the whole call (default 60 s).
     pub request_timeout: Duration,
-    /// Requests read, decoded and planned at once; more wait their turn before their body
-    /// is read (default 2, the cores a planner can use).
+    /// Plans computed at once (default 2, the cores a planner can use). HTTP requests beyond
+    /// it wait before their body is read; egodriver calls in flight are capped at four times
+    /// it, waiting before their messages are decoded.
     pub max_concurrent_requests: usize,
     /// Pixels one request may make the server decode: the frames × width × height of an
     /// HTTP request, of an egodriver session's declared cameras (default 36 M: four cameras

@@ -2,7 +2,7 @@
 //! which modules, planning step limit and backend), and how infractions are scored.
 
 use fogline_rco::{
-    Modules, OpenAiBackend, OpenAiParams, Rco, RcoParams, RulesBackend, RulesParams,
+    HostileBackend, Modules, OpenAiBackend, OpenAiParams, Rco, RcoParams, RulesBackend, RulesParams,
 };
 use serde::{Deserialize, Serialize};
 
@@ -18,6 +18,12 @@ pub enum BackendSetup {
     Rules,
     /// An OpenAI-compatible server.
     Openai(OpenAiParams),
+    /// The red-team backend ([`fogline_rco::HostileBackend`]): the most dangerous
+    /// well-formed answers, to show what the hard limits and the shield hold.
+    Hostile {
+        /// Ask for a deceleration limit that would take braking authority away.
+        weak_brakes: bool,
+    },
 }
 
 impl BackendSetup {
@@ -49,6 +55,8 @@ impl BackendSetup {
         match self {
             BackendSetup::Rules => "rules".into(),
             BackendSetup::Openai(p) => format!("openai {} at {}", p.model, p.base_url),
+            BackendSetup::Hostile { weak_brakes: false } => "hostile".into(),
+            BackendSetup::Hostile { weak_brakes: true } => "hostile (weak brakes)".into(),
         }
     }
 }
@@ -111,6 +119,12 @@ impl RcoSetup {
                 let b = OpenAiBackend::new(p.clone()).map_err(|e| SimError::Rco(e.to_string()))?;
                 Rco::new(params, Box::new(b))
             }
+            BackendSetup::Hostile { weak_brakes } => Rco::new(
+                params,
+                Box::new(HostileBackend {
+                    weak_brakes: *weak_brakes,
+                }),
+            ),
         };
         rco.map_err(|e| SimError::Rco(e.to_string()))
     }

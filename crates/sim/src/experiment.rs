@@ -547,7 +547,9 @@ impl Summary {
                         .iter()
                         .filter(|(e, _)| e.is_collision())
                         .map(|(_, v)| v)
+                        // An empty sum is −0.0; + 0.0 makes it 0.
                         .sum::<f64>()
+                        + 0.0
                 })
             };
             paired.push(PairedDiff {

@@ -194,10 +194,19 @@ impl Planner for Misbehaving {
 
 #[test]
 fn an_egodriver_planner_that_misbehaves_is_recorded_and_a_dead_endpoint_too() {
+    // A planner that hangs holds its plan slot until it returns: room for all of them, so
+    // the well-behaved clips are not queued behind the hung ones (what this test is about is
+    // how the client records each misbehaviour).
     let server = fogline_remote::egodriver::serve(
         "127.0.0.1:0".parse().unwrap(),
         Arc::new(Misbehaving),
-        Default::default(),
+        fogline_remote::egodriver::ServeOptions {
+            limits: fogline_remote::Limits {
+                max_concurrent_requests: 16,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
     )
     .unwrap();
     let o = outcomes(&config("egodriver", &server.local_addr().to_string()));

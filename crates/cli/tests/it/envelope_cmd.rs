@@ -267,7 +267,8 @@ fn bad_input_exits_2_with_the_error_chain_and_keeps_previous_outputs() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        String::from_utf8_lossy(&o.stderr).contains("--bands: expected `auto` or a whole number")
+        String::from_utf8_lossy(&o.stderr)
+            .contains("--bands <BANDS>': expected `auto` or a whole number, got \"six\"")
     );
 }
 

@@ -173,7 +173,8 @@ fn bad_numbers_name_row_and_column() {
         ("abc", "a finite number"),
         ("NaN", "a finite number"),
         ("inf", "a finite number"),
-        ("-0.5", "a distance in metres (>= 0)"),
+        ("-0.5", "a distance in metres (0 to 100000)"),
+        ("2.7e178", "a distance in metres (0 to 100000)"),
         ("", "a finite number"),
     ] {
         let text = format!(
@@ -480,4 +481,83 @@ fn arrow_batches_read_like_the_csv_file() {
         err.contains("frame") && err.contains("row 200") && err.contains("ade_attacked"),
         "{err}"
     );
+}
+
+/// The rows of `valid_csv(n)` as one Arrow batch (text columns as text, distances as f64).
+fn batch_of(text: &str) -> arrow_array::RecordBatch {
+    use arrow_array::{ArrayRef, Float64Array, StringArray};
+    use std::sync::Arc;
+    let mut rdr = ::csv::Reader::from_reader(text.as_bytes());
+    let headers: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
+    let rows: Vec<::csv::StringRecord> = rdr.records().map(|r| r.unwrap()).collect();
+    let cols: Vec<(String, ArrayRef)> = headers
+        .iter()
+        .enumerate()
+        .map(|(i, h)| {
+            let a: ArrayRef = if matches!(h.as_str(), "ade_clean" | "ade_attacked" | "l2") {
+                Arc::new(Float64Array::from_iter_values(
+                    rows.iter().map(|r| r[i].parse::<f64>().unwrap()),
+                ))
+            } else {
+                Arc::new(StringArray::from_iter_values(
+                    rows.iter().map(|r| r[i].to_string()),
+                ))
+            };
+            (h.clone(), a)
+        })
+        .collect();
+    arrow_array::RecordBatch::try_from_iter(cols).unwrap()
+}
+
+#[test]
+fn a_parquet_file_scrambled_mid_file_is_rejected_naming_it() {
+    // Files as fogline's export writes them (Snappy pages) and uncompressed ones; 200 bytes
+    // overwritten at a random place in the middle of each, 40 times.
+    let text = valid_csv(150);
+    let good = csv(&text).unwrap();
+    let batch = batch_of(&text);
+    for compression in [
+        parquet::basic::Compression::SNAPPY,
+        parquet::basic::Compression::UNCOMPRESSED,
+    ] {
+        let props = parquet::file::properties::WriterProperties::builder()
+            .set_compression(compression)
+            .build();
+        let mut buf = Vec::new();
+        let mut w =
+            parquet::arrow::ArrowWriter::try_new(&mut buf, batch.schema(), Some(props)).unwrap();
+        w.write(&batch).unwrap();
+        w.close().unwrap();
+        let clean =
+            read_pairs_bytes("t.parquet", Format::Parquet, &buf, &ReadOptions::default()).unwrap();
+        assert_eq!(clean.ade_attacked_m, good.ade_attacked_m);
+        let mut state = 0x5EED_u64 ^ buf.len() as u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            state >> 33
+        };
+        let (mut rejected, mut silent) = (0, Vec::new());
+        for trial in 0..40 {
+            let mut bad = buf.clone();
+            let span = bad.len() * 6 / 10;
+            let at = bad.len() / 5 + (next() as usize % span).min(bad.len() - 200);
+            for b in &mut bad[at..at + 200] {
+                *b = next() as u8;
+            }
+            match read_pairs_bytes("t.parquet", Format::Parquet, &bad, &ReadOptions::default()) {
+                Err(e) => {
+                    assert!(msg(e).contains("t.parquet"), "the error names the file");
+                    rejected += 1;
+                }
+                Ok(t) => silent.push((trial, at, t.ade_attacked_m == good.ade_attacked_m)),
+            }
+        }
+        assert!(
+            silent.is_empty(),
+            "{compression:?}: {rejected} of 40 scrambled files rejected; read without error: \
+             {silent:?}"
+        );
+    }
 }

@@ -12,6 +12,7 @@
 //! - [`openai::OpenAiBackend`]: any OpenAI-compatible `/v1/chat/completions` server.
 
 pub mod answer;
+pub mod hostile;
 pub mod openai;
 pub mod prompt;
 pub mod rules;

@@ -85,6 +85,7 @@
 //! - `ψ_max`: 15 °/s, 10 on a wet road, in rain or at night, 8 in heavy rain, fog or snow.
 //! - `d_brake`: `v_max² / (2 de_max)` rounded up to 5 m.
 
+use crate::verifier::is_front;
 use fogline_types::clip::CameraId;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -163,10 +164,6 @@ fn is_vru(object: &str) -> bool {
 pub fn is_signal(object: &str) -> bool {
     let o = object.to_ascii_lowercase().replace('_', " ");
     o.contains("traffic light") || o.contains("sign") || o.contains("signal")
-}
-
-fn is_front(c: CameraId) -> bool {
-    c.yaw_rad() == 0.0
 }
 
 fn is_left(c: CameraId) -> bool {
@@ -503,11 +500,7 @@ fn infer(ctx: &QueryContext<'_>, p: &RulesParams) -> Inferred {
     }
     hazards.truncate(MAX_HAZARDS);
     geo.truncate(MAX_HAZARDS);
-    let front_immediate = ctx
-        .assessment
-        .views
-        .iter()
-        .any(|v| is_front(v.camera) && v.state == HazardState::ImmediateHazard);
+    let front_immediate = ctx.assessment.front_immediate();
     let dir = now.navigation.direction;
     let towards_side = |c: CameraId| {
         if is_left(c) {
@@ -656,11 +649,7 @@ fn move_plan(ctx: &QueryContext<'_>, p: &RulesParams) -> serde_json::Value {
         NavDirection::ChangeLaneRight if side_clear(false) => Behavior::ChangeLaneToRight,
         _ => Behavior::MoveForward,
     };
-    let front_immediate = ctx
-        .assessment
-        .views
-        .iter()
-        .any(|v| is_front(v.camera) && v.state == HazardState::ImmediateHazard);
+    let front_immediate = ctx.assessment.front_immediate();
     let towards_immediate = ctx.assessment.views.iter().any(|v| {
         !is_front(v.camera)
             && v.state == HazardState::ImmediateHazard

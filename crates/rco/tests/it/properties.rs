@@ -4,12 +4,14 @@
 
 use std::collections::BTreeMap;
 
+use fogline_rco::HostileBackend;
 use fogline_rco::backend::{Backend, BackendError, Query, Task};
 use fogline_rco::safety;
+use fogline_rco::verifier::is_front;
 use fogline_rco::{
-    Action, Daylight, Decision, EgoState, Modules, NavDirection, Navigation, Observation, PixelBox,
-    Rco, RcoParams, RoadGeometry, RoadLayout, Source, Surroundings, TrafficEnv, TrafficObject,
-    View, Weather,
+    Action, Behavior, Daylight, Decision, EgoState, HazardState, Modules, NavDirection, Navigation,
+    Observation, PixelBox, Rco, RcoParams, RoadGeometry, RoadLayout, Source, SpeedControl,
+    Surroundings, TrafficEnv, TrafficObject, View, Weather,
 };
 use fogline_types::clip::CameraId;
 use proptest::prelude::*;
@@ -230,10 +232,50 @@ fn check(d: &Decision, obs: &Observation, params: &RcoParams) -> Result<(), Test
         prop_assert_eq!(d.source, Source::Fallback);
         return Ok(());
     }
-    // The safety constraints are applied exactly (equations 7–10) and honoured.
+    // An immediate hazard in a front view's pixels always brakes, whatever was answered.
+    let hazard_ahead = d
+        .observed
+        .iter()
+        .any(|v| is_front(v.camera) && v.state == HazardState::ImmediateHazard);
+    if hazard_ahead {
+        prop_assert_eq!(d.action.behavior, Behavior::Stop, "{:?}", d.action);
+        prop_assert!(matches!(
+            d.action.speed,
+            SpeedControl::QuickDeceleration | SpeedControl::DecelerationToZero
+        ));
+        prop_assert!(
+            d.control.brake >= 0.4,
+            "brake {} with a hazard ahead",
+            d.control.brake
+        );
+        prop_assert!(d.control.throttle <= d.raw_control.throttle);
+    } else {
+        prop_assert!(!d.shielded);
+    }
+    // The constraints in force lie inside the hard limits, whoever answered.
+    if let Some(sc) = d.constraints {
+        let hard = &params.safety.hard;
+        prop_assert!(sc.max_speed_kmh <= hard.speed_limit(obs.surroundings.traffic_env));
+        prop_assert!(sc.min_following_distance_s >= hard.min_gap_s);
+        prop_assert!(sc.max_acceleration_mps2 <= hard.max_acceleration_mps2);
+        prop_assert!(
+            sc.max_deceleration_mps2 >= hard.deceleration_mps2[0]
+                && sc.max_deceleration_mps2 <= hard.deceleration_mps2[1]
+        );
+        prop_assert!(sc.max_yaw_rate_dps <= hard.max_yaw_rate_dps);
+        let v = sc.max_speed_mps();
+        let need = ((v * v / (2.0 * sc.max_deceleration_mps2)) / 5.0).ceil() * 5.0;
+        prop_assert!(sc.min_braking_distance_m <= need.max(5.0));
+    }
+    // The safety constraints are applied exactly (equations 7–10) and honoured; with a
+    // hazard ahead they may only add braking.
     match (params.modules.safety_constraints, d.constraints) {
         (true, Some(sc)) => {
-            let (c, t) = safety::apply(d.raw_control, &obs.ego, &sc, &params.safety);
+            let (mut c, t) = safety::apply(d.raw_control, &obs.ego, &sc, &params.safety);
+            if hazard_ahead {
+                c.brake = c.brake.max(d.raw_control.brake);
+                c.throttle = c.throttle.min(d.raw_control.throttle);
+            }
             prop_assert_eq!(c, d.control);
             prop_assert_eq!(t, d.triggers);
             let dt = params.safety.delta_throttle;
@@ -245,16 +287,19 @@ fn check(d: &Decision, obs: &Observation, params: &RcoParams) -> Result<(), Test
                 let lim = sc.max_yaw_rate_dps / obs.ego.yaw_rate_rps.abs().to_degrees();
                 prop_assert!(d.control.steer.abs() <= lim + 1e-12);
             }
-            if t.min_braking_distance && !t.max_deceleration {
+            if t.min_braking_distance && !t.max_deceleration && !hazard_ahead {
                 let want = (d.raw_control.brake + params.safety.delta_brake).min(1.0);
                 prop_assert!(d.control.brake >= want - 1e-12);
             }
-            if !t.any() {
+            if !t.any() && !hazard_ahead {
                 prop_assert_eq!(d.control, d.raw_control);
             }
         }
         (true, None) => prop_assert!(false, "constraints missing"),
         (false, _) => prop_assert_eq!(d.control, d.raw_control),
+    }
+    if hazard_ahead && d.constraints.is_none() {
+        prop_assert_eq!(d.control, d.raw_control);
     }
     // A pair runs only when its condition holds; everything else is a stop.
     match d.source {
@@ -298,6 +343,27 @@ proptest! {
             ..RcoParams::default()
         };
         let mut rco = Rco::new(params.clone(), Box::new(Adversary { answers, next: 0 })).unwrap();
+        for (t, mut o) in obs.into_iter().enumerate() {
+            o.tick = t as u64;
+            let d = rco.step(&o);
+            check(&d, &o, &params)?;
+        }
+    }
+
+    #[test]
+    fn a_hostile_backend_never_passes_the_hard_limits_or_drives_into_a_hazard(
+        obs in prop::collection::vec(observation(), 1..10),
+        weak_brakes in any::<bool>(),
+        verifier in any::<bool>(),
+    ) {
+        let params = RcoParams {
+            modules: Modules {
+                verifier,
+                ..Modules::default()
+            },
+            ..RcoParams::default()
+        };
+        let mut rco = Rco::new(params.clone(), Box::new(HostileBackend { weak_brakes })).unwrap();
         for (t, mut o) in obs.into_iter().enumerate() {
             o.tick = t as u64;
             let d = rco.step(&o);

@@ -20,7 +20,7 @@ mod client;
 mod server;
 
 pub use client::{Client, ClientOptions};
-pub use server::{ServeOptions, serve};
+pub use server::{ServeOptions, parse_camera_map, serve};
 
 pub use crate::{ImageFormat, Limits, ServerHandle};
 
@@ -61,8 +61,9 @@ pub const CONTRACT_REVISION: u32 = 2;
 /// positive, as the contract's unsigned timestamps need).
 pub const T0_US: u64 = 10_000_000;
 
-/// The largest gRPC message either end sends or accepts (64 MiB: a 1080p PNG fits).
-pub const MAX_MESSAGE_BYTES: usize = 64 * 1024 * 1024;
+/// The largest gRPC message either end sends or accepts (32 MiB: one camera frame per
+/// message, and a 4K PNG fits).
+pub const MAX_MESSAGE_BYTES: usize = 32 * 1024 * 1024;
 
 /// The `alpasim_grpc` API version the contract was taken from, reported by `get_version`.
 pub const ALPASIM_API_VERSION: (u32, u32, u32) = (0, 55, 0);

@@ -48,7 +48,7 @@ pub struct ServeOptions {
     /// Connections, timeouts, concurrent calls and decoded pixels ([`Limits`]; the pixel
     /// limit bounds a session's declared cameras × frames).
     pub limits: Limits,
-    /// The decoded frames all sessions may hold together, bytes (default 384 MiB); a new
+    /// The decoded frames all sessions may hold together, bytes (default 320 MiB); a new
     /// session that would pass it closes the least recently used ones.
     pub max_stored_bytes: u64,
 }
@@ -59,9 +59,34 @@ impl Default for ServeOptions {
             camera_map: BTreeMap::new(),
             allow_shut_down: false,
             limits: Limits::default(),
-            max_stored_bytes: 384 << 20,
+            max_stored_bytes: 320 << 20,
         }
     }
+}
+
+/// Parses camera-map entries `LOGICAL=CAMERA` (as `fogline serve egodriver --camera-map`
+/// takes them) into [`ServeOptions::camera_map`]; the error names the entry and what was
+/// expected.
+pub fn parse_camera_map(entries: &[String]) -> Result<BTreeMap<String, CameraId>, String> {
+    let mut map = BTreeMap::new();
+    for e in entries {
+        let Some((logical, camera)) = e.split_once('=') else {
+            return Err(format!(
+                "--camera-map {e:?}: expected LOGICAL=CAMERA, e.g. front=camera_front_wide_120fov"
+            ));
+        };
+        let Some(id) = CameraId::parse(camera.trim()) else {
+            let names: Vec<&str> = CameraId::ALL.iter().map(|c| c.name()).collect();
+            return Err(format!(
+                "--camera-map {e:?}: {camera:?} is not a camera name (one of {})",
+                names.join(", ")
+            ));
+        };
+        if map.insert(logical.trim().to_string(), id).is_some() {
+            return Err(format!("--camera-map: {logical:?} is mapped twice"));
+        }
+    }
+    Ok(map)
 }
 
 /// Serves `planner` over the egodriver contract on `addr` (port 0 picks a free port; see
@@ -86,6 +111,7 @@ pub fn serve(
             stop: stop.clone(),
             said: Mutex::new(HashSet::new()),
             evicted: Mutex::new(std::collections::VecDeque::new()),
+            plans: Arc::new(tokio::sync::Semaphore::new(limits.max_concurrent_requests)),
         }),
     };
     let server = EgodriverServiceServer::new(service)
@@ -104,9 +130,10 @@ pub fn serve(
             tonic::transport::Server::builder()
                 .timeout(limits.request_timeout)
                 .max_concurrent_streams(Some(32))
-                // Calls beyond the cap wait before their messages are decoded.
+                // Calls beyond the cap wait before their messages are decoded: four per
+                // plan slot, so images and session calls keep flowing while plans run.
                 .layer(tower::limit::GlobalConcurrencyLimitLayer::new(
-                    limits.max_concurrent_requests,
+                    4 * limits.max_concurrent_requests,
                 ))
                 .serve_with_incoming_shutdown(server, incoming, signal)
                 .await
@@ -126,6 +153,8 @@ struct Shared {
     said: Mutex<HashSet<String>>,
     /// Sessions recently closed to make room (the newest 1,024), so their calls are told why.
     evicted: Mutex<std::collections::VecDeque<String>>,
+    /// One permit per plan being computed.
+    plans: Arc<tokio::sync::Semaphore>,
 }
 
 struct Service {
@@ -462,7 +491,14 @@ impl EgodriverService for Service {
             history,
             anchor,
         } = snapshot;
+        // At most `max_concurrent_requests` plans at once; the permit lives as long as the
+        // planner runs, even when the caller has given up.
+        let slot = Arc::clone(&self.shared.plans)
+            .acquire_owned()
+            .await
+            .map_err(|_| Status::unavailable("the server is stopping"))?;
         let result = tokio::task::spawn_blocking(move || {
+            let _slot = slot;
             let input = PlannerInput {
                 cameras: cameras
                     .iter()

@@ -184,7 +184,7 @@ async fn handle(
 async fn plan(shared: Arc<Shared>, req: Request<Incoming>) -> Response<Full<Bytes>> {
     // The body is read only with a permit: requests beyond the cap wait here, their bodies
     // unread, so memory stays bounded however many arrive at once.
-    let Ok(_permit) = Arc::clone(&shared.requests).acquire_owned().await else {
+    let Ok(permit) = Arc::clone(&shared.requests).acquire_owned().await else {
         return error_response(
             StatusCode::SERVICE_UNAVAILABLE,
             "the server is stopping".into(),
@@ -221,7 +221,13 @@ async fn plan(shared: Arc<Shared>, req: Request<Incoming>) -> Response<Full<Byte
         }
     };
     let worker = Arc::clone(&shared);
-    match tokio::task::spawn_blocking(move || run(&worker, &body)).await {
+    // The permit lives as long as the planner runs, even when the caller has given up.
+    match tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        run(&worker, &body)
+    })
+    .await
+    {
         Ok(Ok(out)) => {
             let answer = AnswerBody {
                 trajectory: &out.trajectory.xy,
