@@ -6,6 +6,7 @@ mod architecture;
 mod campaign_cmd;
 mod envelope_cmd;
 mod interop;
+mod mutations;
 mod perturb_cmd;
 mod planner_cmd;
 mod rco_cmd;

@@ -511,3 +511,177 @@ fn a_session_declaring_more_pixels_than_the_cap_is_refused() {
     });
     server.shutdown().unwrap();
 }
+
+/// One to three random edits of `bytes` (SplitMix64 from `state`).
+fn mutate(bytes: &[u8], state: &mut u64) -> Vec<u8> {
+    let mut next = || {
+        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = *state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    let mut v = bytes.to_vec();
+    for _ in 0..1 + next() % 3 {
+        let at = (next() as usize) % (v.len() + 1);
+        match next() % 4 {
+            0 if !v.is_empty() => {
+                let i = at.min(v.len() - 1);
+                v[i] = next() as u8;
+            }
+            1 => v
+                .splice(at..at, (0..1 + next() % 6).map(|k| (next() >> k) as u8))
+                .for_each(drop),
+            2 => {
+                let end = (at + 1 + (next() as usize) % 12).min(v.len());
+                v.drain(at.min(end)..end);
+            }
+            _ => v.truncate(at),
+        }
+    }
+    v
+}
+
+#[test]
+fn mutated_messages_get_answers_and_leave_the_server_serving() {
+    use prost::Message as _;
+    // Valid messages of a whole session, encoded; each mutated 150 times, decoded, and the
+    // mutants that decode sent to a live server. Every call must be answered (an error is
+    // fine), the server must keep serving, and a clean session must still drive.
+    let server = egodriver::serve(
+        loopback(),
+        Fake::new(Behaviour::Straight),
+        ServeOptions::default(),
+    )
+    .unwrap();
+    let addr = server.local_addr();
+    let start = start_request("m", vec![camera("front", 120.0, 0.0, 0.0, 2)], None).into_inner();
+    let img = RolloutCameraImage {
+        session_uuid: "m".into(),
+        camera_image: Some(CameraImage {
+            frame_start_us: 1_000_000,
+            frame_end_us: 1_000_000,
+            image_bytes: png(640, 360, 7),
+            logical_id: "front".into(),
+        }),
+    };
+    let poses: Vec<PoseAtTime> = (0..20)
+        .map(|i| PoseAtTime {
+            pose: Some(Pose {
+                vec: Some(Vec3 {
+                    x: i as f32 * 0.5,
+                    y: 0.0,
+                    z: 0.3,
+                }),
+                quat: Some(yaw_quat(0.0)),
+            }),
+            timestamp_us: 100_000 * (i + 1),
+        })
+        .collect();
+    let ego = RolloutEgoTrajectory {
+        session_uuid: "m".into(),
+        trajectory: Some(Trajectory { poses }),
+        dynamic_states: Vec::new(),
+    };
+    let drive = DriveRequest {
+        session_uuid: "m".into(),
+        time_now_us: 2_000_000,
+        time_query_us: 2_100_000,
+        ..Default::default()
+    };
+    let mut state = 0x00E6_0D81_u64;
+    let (mut sent, mut decoded_none) = (0, 0);
+    runtime().block_on(async {
+        let mut rpc = connect(addr).await;
+        for round in 0..150 {
+            // A session to send the mutants into (a mutated start may or may not make one).
+            let _ = rpc.start_session(start.clone()).await;
+            if let Ok(m) = DriveSessionRequest::decode(&*mutate(&start.encode_to_vec(), &mut state))
+            {
+                let _ = rpc.start_session(m).await;
+                sent += 1;
+            }
+            match RolloutCameraImage::decode(&*mutate(&img.encode_to_vec(), &mut state)) {
+                Ok(m) => {
+                    let _ = rpc.submit_image_observation(m).await;
+                    sent += 1;
+                }
+                Err(_) => decoded_none += 1,
+            }
+            if let Ok(m) = RolloutEgoTrajectory::decode(&*mutate(&ego.encode_to_vec(), &mut state))
+            {
+                let _ = rpc.submit_egomotion_observation(m).await;
+                sent += 1;
+            }
+            if let Ok(m) = DriveRequest::decode(&*mutate(&drive.encode_to_vec(), &mut state)) {
+                let _ = rpc.drive(m).await;
+                sent += 1;
+            }
+            // Well-formed messages with hostile values: any resolution and focal length,
+            // non-finite and out-of-order poses, any time.
+            let mut r = || {
+                mutate(&[0; 8], &mut state)
+                    .iter()
+                    .fold(0u64, |a, &b| a.wrapping_mul(31).wrapping_add(u64::from(b)))
+            };
+            let mut cam = camera("front", 120.0, 0.0, 0.0, 2);
+            if let Some(spec) = cam.intrinsics.as_mut() {
+                spec.resolution_w = (r() % 20_000) as u32;
+                spec.resolution_h = (r() % 20_000) as u32;
+                if let Some(CameraParam::OpencvPinholeParam(p)) = spec.camera_param.as_mut() {
+                    p.focal_length_x = [0.0, -1.0, f64::NAN, 1e30, 300.0][(r() % 5) as usize];
+                }
+            }
+            let _ = rpc.start_session(start_request("m", vec![cam], None)).await;
+            let wild = [f32::NAN, f32::INFINITY, -1e30, 0.0, 5.0];
+            let poses: Vec<PoseAtTime> = (0..1 + r() % 30)
+                .map(|_| PoseAtTime {
+                    pose: Some(Pose {
+                        vec: Some(Vec3 {
+                            x: wild[(r() % 5) as usize],
+                            y: wild[(r() % 5) as usize],
+                            z: 0.0,
+                        }),
+                        quat: Some(yaw_quat((r() % 7) as f64)),
+                    }),
+                    timestamp_us: r() % 5_000_000,
+                })
+                .collect();
+            let _ = rpc
+                .submit_egomotion_observation(RolloutEgoTrajectory {
+                    session_uuid: "m".into(),
+                    trajectory: Some(Trajectory { poses }),
+                    dynamic_states: Vec::new(),
+                })
+                .await;
+            let _ = rpc
+                .drive(DriveRequest {
+                    session_uuid: "m".into(),
+                    time_now_us: r(),
+                    time_query_us: r(),
+                    ..Default::default()
+                })
+                .await;
+            let _ = rpc
+                .close_session(DriveSessionCloseRequest {
+                    session_uuid: "m".into(),
+                })
+                .await;
+            assert!(rpc.get_version(Empty {}).await.is_ok(), "round {round}");
+        }
+    });
+    // Most byte-level mutants no longer decode as protobuf; enough do.
+    assert!(
+        sent >= 40,
+        "only {sent} mutants decoded ({decoded_none} images did not)"
+    );
+    server.shutdown().unwrap();
+    // A clean session on a fresh server drives as before.
+    let (_, answer) = drive_session(
+        ServeOptions::default(),
+        vec![camera("front", 120.0, 0.0, 0.0, 2)],
+        None,
+        &[("front", 1_000_000), ("front", 1_900_000)],
+    );
+    assert!(!answer.trajectory.unwrap_or_default().poses.is_empty());
+}
