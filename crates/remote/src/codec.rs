@@ -23,8 +23,8 @@ pub(crate) struct Decoded {
     pub rgb: Vec<u8>,
 }
 
-/// Decodes a PNG or JPEG image (any colour type) to RGB8.
-pub(crate) fn decode(bytes: &[u8]) -> Result<Decoded, String> {
+/// The format of an image that must be PNG or JPEG, from its first bytes.
+fn png_or_jpeg(bytes: &[u8]) -> Result<image::ImageFormat, String> {
     if bytes.is_empty() {
         return Err("the image is empty".into());
     }
@@ -33,6 +33,12 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<Decoded, String> {
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
         return Err(format!("the image is {format:?}; PNG or JPEG expected"));
     }
+    Ok(format)
+}
+
+/// Decodes a PNG or JPEG image (any colour type) to RGB8.
+pub(crate) fn decode(bytes: &[u8]) -> Result<Decoded, String> {
+    let format = png_or_jpeg(bytes)?;
     let img = image::load_from_memory_with_format(bytes, format)
         .map_err(|e| format!("cannot decode the {format:?} image: {e}"))?
         .into_rgb8();
@@ -52,14 +58,7 @@ pub(crate) fn decode_sized(
     height: u32,
     declared_by: &str,
 ) -> Result<Decoded, String> {
-    if bytes.is_empty() {
-        return Err("the image is empty".into());
-    }
-    let format = image::guess_format(bytes)
-        .map_err(|_| "the image is neither PNG nor JPEG (unrecognised header)".to_string())?;
-    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
-        return Err(format!("the image is {format:?}; PNG or JPEG expected"));
-    }
+    let format = png_or_jpeg(bytes)?;
     let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
         .into_dimensions()
         .map_err(|e| format!("cannot read the {format:?} image's header: {e}"))?;

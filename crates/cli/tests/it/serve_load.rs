@@ -173,6 +173,30 @@ fn post_max_body(addr: SocketAddr, body: &[u8]) -> u16 {
         .unwrap_or(0)
 }
 
+/// fogline's client of `protocol` for the server at `addr`, with a limit of `timeout_s`.
+fn client(protocol: &str, addr: SocketAddr, timeout_s: u64) -> Box<dyn Planner> {
+    let timeout = Duration::from_secs(timeout_s);
+    if protocol == "http" {
+        Box::new(
+            http::Client::new(http::ClientOptions {
+                url: format!("http://{addr}"),
+                timeout,
+                ..http::ClientOptions::default()
+            })
+            .unwrap(),
+        )
+    } else {
+        Box::new(
+            egodriver::Client::new(egodriver::ClientOptions {
+                endpoint: addr.to_string(),
+                timeout,
+                ..egodriver::ClientOptions::default()
+            })
+            .unwrap(),
+        )
+    }
+}
+
 fn run_load(protocol: &str) {
     raise_fd_limit();
     let server = start(protocol);
@@ -199,25 +223,7 @@ fn run_load(protocol: &str) {
                     if protocol == "http" && i % 4 == 3 {
                         return format!("body at cap: HTTP {}", post_max_body(addr, junk));
                     }
-                    let planner: Box<dyn Planner> = if protocol == "http" {
-                        Box::new(
-                            http::Client::new(http::ClientOptions {
-                                url: format!("http://{addr}"),
-                                timeout: Duration::from_secs(120),
-                                ..http::ClientOptions::default()
-                            })
-                            .unwrap(),
-                        )
-                    } else {
-                        Box::new(
-                            egodriver::Client::new(egodriver::ClientOptions {
-                                endpoint: addr.to_string(),
-                                timeout: Duration::from_secs(120),
-                                ..egodriver::ClientOptions::default()
-                            })
-                            .unwrap(),
-                        )
-                    };
+                    let planner = client(protocol, addr, 120);
                     match plan_with(planner.as_ref(), calibs, frame, history) {
                         Ok(()) => "pixels at cap: answered".into(),
                         Err(e) => format!("pixels at cap: refused ({e})"),
@@ -230,25 +236,7 @@ fn run_load(protocol: &str) {
     let burst_s = t.elapsed().as_secs_f64();
 
     // Then a normal request, the idle connections still open.
-    let planner: Box<dyn Planner> = if protocol == "http" {
-        Box::new(
-            http::Client::new(http::ClientOptions {
-                url: format!("http://{addr}"),
-                timeout: Duration::from_secs(60),
-                ..http::ClientOptions::default()
-            })
-            .unwrap(),
-        )
-    } else {
-        Box::new(
-            egodriver::Client::new(egodriver::ClientOptions {
-                endpoint: addr.to_string(),
-                timeout: Duration::from_secs(60),
-                ..egodriver::ClientOptions::default()
-            })
-            .unwrap(),
-        )
-    };
+    let planner = client(protocol, addr, 60);
     let input = PlannerInput {
         cameras: clip
             .cameras
