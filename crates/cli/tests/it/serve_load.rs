@@ -69,24 +69,29 @@ fn peak_rss_mb(pid: u32) -> Option<f64> {
     Some(kb / 1024.0)
 }
 
-/// The test's own open-file limit raised to its hard limit (it holds 2,000 sockets).
-fn raise_fd_limit() {
+/// The test's own open-file limit raised to its hard limit (it holds 2,000 sockets); the
+/// number of idle connections it can hold (2,000 unless the hard limit is lower).
+fn raise_fd_limit() -> usize {
     #[cfg(unix)]
     {
         use rustix::process::{Resource, getrlimit, setrlimit};
         let mut lim = getrlimit(Resource::Nofile);
         if let (Some(cur), Some(max)) = (lim.current, lim.maximum.or(Some(65_536))) {
-            if max > cur {
-                lim.current = Some(max.min(65_536));
+            let want = max.min(65_536);
+            if want > cur {
+                lim.current = Some(want);
                 let _ = setrlimit(Resource::Nofile, lim);
             }
+            let now = getrlimit(Resource::Nofile).current.unwrap_or(want);
+            return IDLE.min(usize::try_from(now.saturating_sub(256)).unwrap_or(IDLE));
         }
     }
+    IDLE
 }
 
-/// 2,000 connections that send nothing, or half a request line and headers.
-fn idle_connections(addr: SocketAddr) -> Vec<TcpStream> {
-    (0..IDLE)
+/// `n` connections that send nothing, or half a request line and headers.
+fn idle_connections(addr: SocketAddr, n: usize) -> Vec<TcpStream> {
+    (0..n)
         .map(|i| {
             let mut s = TcpStream::connect(addr).unwrap();
             if i % 2 == 1 {
@@ -198,13 +203,17 @@ fn client(protocol: &str, addr: SocketAddr, timeout_s: u64) -> Box<dyn Planner> 
 }
 
 fn run_load(protocol: &str) {
-    raise_fd_limit();
+    let n_idle = raise_fd_limit();
+    assert!(
+        n_idle >= 500,
+        "the open-file limit leaves room for {n_idle} connections only"
+    );
     let server = start(protocol);
     let addr = server.addr;
     let clip = normal_clip();
     let history = clip.ego_history.clone();
     let t = Instant::now();
-    let idle = idle_connections(addr);
+    let idle = idle_connections(addr, n_idle);
     let idle_s = t.elapsed().as_secs_f64();
 
     // 16 concurrent requests at the caps: each planning call carries exactly the pixel
@@ -264,7 +273,7 @@ fn run_load(protocol: &str) {
         *counts.entry(key).or_default() += 1;
     }
     eprintln!(
-        "{protocol}: {IDLE} idle connections in {idle_s:.2} s; {CONCURRENT} concurrent requests \
+        "{protocol}: {n_idle} idle connections in {idle_s:.2} s; {CONCURRENT} concurrent requests \
          at the caps in {burst_s:.1} s: {counts:?}; then a normal request answered in \
          {latency_ms:.0} ms; peak RSS {} (bound {RSS_BOUND_MB} MB)",
         rss.map_or("unknown".into(), |r| format!("{r:.0} MB"))
