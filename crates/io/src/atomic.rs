@@ -70,6 +70,20 @@ pub fn write_atomic_with(
 /// make atomic is a kill or a power cut in the middle of its renames (microseconds after
 /// every byte is on disk): then the directory holds some new files and the old ones moved
 /// aside under `.NAME.old-*`.
+///
+/// ```
+/// # fn main() -> std::io::Result<()> {
+/// let dir = std::env::temp_dir().join(format!("fileset-doc-{}", std::process::id()));
+/// let mut set = fogline_io::FileSet::new();
+/// set.write(&dir.join("summary.json"), b"{}")?;
+/// set.write(&dir.join("report.md"), b"# Report")?;
+/// assert!(!dir.join("summary.json").exists()); // nothing visible before the commit
+/// set.commit()?;
+/// assert_eq!(std::fs::read(dir.join("report.md"))?, b"# Report");
+/// # std::fs::remove_dir_all(&dir)?;
+/// # Ok(())
+/// # }
+/// ```
 #[derive(Debug, Default)]
 pub struct FileSet {
     entries: Vec<Entry>,
