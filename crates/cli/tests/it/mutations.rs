@@ -2,6 +2,7 @@
 //! insertions, deletions, truncations, duplicated chunks and huge numbers applied to valid
 //! inputs — a campaign configuration (TOML), a sim suite (JSON and TOML), recorded
 //! observations (JSON Lines, then driven through the controller), LLM answers of every task,
+//! frames given to `fogline perturb` (JPEG and PNG),
 //! and a clip on disk (its JSON metadata and PNG frames). Each mutant must give a clear error
 //! or a valid result: never a panic. Deterministic (a fixed seed) and bounded: a few thousand
 //! mutants in all. The envelope readers (CSV, Parquet,
@@ -212,5 +213,41 @@ fn clips_on_disk() {
     }
     if let Err(e) = fogline_world::read_clip(&clip_dir) {
         panic!("the restored clip does not read: {e}");
+    }
+}
+
+#[test]
+fn frames_perturbed_from_disk() {
+    // `fogline perturb` on a directory holding one JPEG and one PNG frame, each mutated in
+    // turn: a clear error naming the file, or perturbed frames.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    let rgb: Vec<u8> = (0..64 * 48 * 3).map(|i| (i * 7 % 251) as u8).collect();
+    let jpeg =
+        fogline_io::encode(&rgb, 64, 48, fogline_io::ImageFormat::Jpeg { quality: 85 }).unwrap();
+    let png = fogline_io::encode(&rgb, 64, 48, fogline_io::ImageFormat::Png).unwrap();
+    for (name, bytes, seed) in [("a.jpg", &jpeg, 40u64), ("b.png", &png, 41)] {
+        let other = if name == "a.jpg" {
+            ("b.png", &png)
+        } else {
+            ("a.jpg", &jpeg)
+        };
+        std::fs::write(input.join(other.0), other.1).unwrap();
+        let target = input.join(name);
+        survive(name, bytes, 150, seed, |m| {
+            std::fs::write(&target, m).unwrap();
+            let job = fogline_api::perturb_dir::PerturbDir {
+                input: input.clone(),
+                output: dir.path().join("out"),
+                condition: "noise_30+fog_03".into(),
+                ..Default::default()
+            };
+            if let Err(e) = fogline_api::perturb_dir::run(&job) {
+                let text = format!("{e:#}");
+                assert!(text.contains(name) || text.contains("in/"), "{text}");
+            }
+        });
+        std::fs::write(&target, bytes).unwrap();
     }
 }
