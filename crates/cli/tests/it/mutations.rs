@@ -2,12 +2,11 @@
 //! insertions, deletions, truncations, duplicated chunks and huge numbers applied to valid
 //! inputs — a campaign configuration (TOML), a sim suite (JSON and TOML), recorded
 //! observations (JSON Lines, then driven through the controller), LLM answers of every task,
-//! frames given to `fogline perturb` (JPEG and PNG),
-//! and a clip on disk (its JSON metadata and PNG frames). Each mutant must give a clear error
-//! or a valid result: never a panic. Deterministic (a fixed seed) and bounded: a few thousand
-//! mutants in all. The envelope readers (CSV, Parquet,
-//! JSONL) have their own mutation properties in `fogline-envelope`, the egodriver server its
-//! own (mutated protobuf messages sent to a live server, in `fogline-remote`).
+//! frames given to `fogline perturb` (JPEG and PNG) and a clip on disk (its JSON metadata and
+//! PNG frames). Each mutant must give a clear error or a valid result: never a panic.
+//! Deterministic (fixed seeds) and bounded: a few thousand mutants in all. The envelope
+//! readers (CSV, Parquet, JSONL) have their own mutation properties in `fogline-envelope`, the
+//! servers theirs (mutated requests sent to live servers, in `fogline-remote`).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
