@@ -73,6 +73,16 @@ impl Format {
         }
     }
 
+    /// The name `envelope.json` writes (`csv`, `parquet`, `jsonl`, `arrow`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Csv => "csv",
+            Self::Parquet => "parquet",
+            Self::Jsonl => "jsonl",
+            Self::Arrow => "arrow",
+        }
+    }
+
     fn label(self) -> &'static str {
         match self {
             Self::Csv => "CSV",

@@ -169,6 +169,17 @@ pub enum VsAggregate {
     Looser,
 }
 
+impl VsAggregate {
+    /// The name `envelope.json` writes (`tighter`, `matches`, `looser`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Tighter => "tighter",
+            Self::Matches => "matches",
+            Self::Looser => "looser",
+        }
+    }
+}
+
 /// One threshold σ*(s) with its bootstrap.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Threshold {
@@ -509,8 +520,9 @@ pub(crate) fn finite(x: f64) -> Option<f64> {
 
 impl Envelope {
     /// Reads an `envelope.json` back into the model that wrote it (`name` stands for the file
-    /// in errors): its schema version first, then every field (serde's message names the
-    /// field, line and column). The round trip is exact: floats parse bit for bit.
+    /// in errors): its schema version first, then every field (the message names the field
+    /// by its JSON path, e.g. `severity.bands[0].mean_m`, then serde's message with line and
+    /// column). The round trip is exact: floats parse bit for bit.
     pub fn from_json(text: &str, name: &str) -> crate::Result<Self> {
         let bad = |detail: String| crate::EnvelopeError::NotFormat {
             path: name.into(),
@@ -531,7 +543,11 @@ impl Envelope {
             }
             None => return Err(bad("no schema_version field".into())),
         }
-        serde_json::from_str(text).map_err(|e| bad(e.to_string()))
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let env: Self = serde_path_to_error::deserialize(&mut *de)
+            .map_err(|e| bad(format!("at `{}`: {}", e.path(), e.inner())))?;
+        de.end().map_err(|e| bad(e.to_string()))?;
+        Ok(env)
     }
 
     /// The ODD specification a runtime monitor loads (`odd.json`): the headline budget's

@@ -1,8 +1,10 @@
 //! What every section needs: the input plus a few derived lookups.
 
+use fogline_envelope::Envelope;
+use fogline_envelope::model::{DosePoint, OddEntry, Threshold};
+
 use crate::ReportParams;
 use crate::closed_loop::ClosedLoop;
-use crate::doc::{DosePointDoc, EnvelopeDoc, OddDoc, ThresholdDoc};
 
 /// Name of the all-clips aggregate group in `envelope.json`.
 pub(crate) const AGG_ALL: &str = fogline_envelope::model::AGG_ALL;
@@ -11,7 +13,7 @@ pub(crate) const AGG_CLASSIFIED: &str = fogline_envelope::model::AGG_CLASSIFIED;
 
 /// The rendering context.
 pub(crate) struct Ctx<'a> {
-    pub(crate) doc: &'a EnvelopeDoc,
+    pub(crate) env: &'a Envelope,
     pub(crate) changed_l2_m: Option<&'a [f64]>,
     pub(crate) closed_loop: Option<&'a ClosedLoop>,
     pub(crate) params: &'a ReportParams,
@@ -25,14 +27,14 @@ pub(crate) struct Ctx<'a> {
 
 impl<'a> Ctx<'a> {
     pub(crate) fn new(
-        doc: &'a EnvelopeDoc,
+        env: &'a Envelope,
         changed_l2_m: Option<&'a [f64]>,
         closed_loop: Option<&'a ClosedLoop>,
         params: &'a ReportParams,
     ) -> Self {
         let mut scenarios: Vec<String> = Vec::new();
-        for t in &doc.corpus.taxonomy {
-            if doc
+        for t in &env.corpus.taxonomy {
+            if env
                 .corpus
                 .scenarios
                 .iter()
@@ -41,44 +43,52 @@ impl<'a> Ctx<'a> {
                 scenarios.push(t.clone());
             }
         }
-        for s in &doc.corpus.scenarios {
+        for s in &env.corpus.scenarios {
             if s.classified && !scenarios.contains(&s.scenario) {
                 scenarios.push(s.scenario.clone());
             }
         }
         Self {
-            doc,
+            env,
             changed_l2_m,
             closed_loop,
             params,
-            hb: doc.headline_budget(),
-            axis: doc.odd_axis(),
+            hb: env.parameters.headline_budget,
+            axis: odd_axis(env),
             scenarios,
         }
     }
 
+    /// The threshold of a group on an axis at a budget.
+    pub(crate) fn threshold(&self, group: &str, axis: &str, budget: f64) -> Option<&'a Threshold> {
+        self.env
+            .thresholds
+            .iter()
+            .find(|t| t.scenario == group && t.axis == axis && t.budget == budget)
+    }
+
     /// The headline threshold of a group on the ODD axis.
-    pub(crate) fn headline(&self, group: &str) -> Option<&'a ThresholdDoc> {
+    pub(crate) fn headline(&self, group: &str) -> Option<&'a Threshold> {
         let axis = self.axis.as_deref()?;
-        self.doc.threshold(group, axis, self.hb)
+        self.threshold(group, axis, self.hb)
     }
 
     /// The ODD entry of a scenario.
-    pub(crate) fn odd(&self, scenario: &str) -> Option<&'a OddDoc> {
-        self.doc.odd.iter().find(|o| o.scenario == scenario)
+    pub(crate) fn odd(&self, scenario: &str) -> Option<&'a OddEntry> {
+        self.env.odd.iter().find(|o| o.scenario == scenario)
     }
 
     /// Dose-response points of a group on an axis, in level order of the axis.
-    pub(crate) fn dose(&self, group: &str, axis: &str) -> Vec<&'a DosePointDoc> {
+    pub(crate) fn dose(&self, group: &str, axis: &str) -> Vec<&'a DosePoint> {
         let levels: Vec<f64> = self
-            .doc
+            .env
             .axes
             .iter()
             .find(|a| a.axis == axis)
             .map(|a| a.levels.clone())
             .unwrap_or_default();
-        let mut pts: Vec<&DosePointDoc> = self
-            .doc
+        let mut pts: Vec<&DosePoint> = self
+            .env
             .dose_response
             .iter()
             .filter(|d| {
@@ -99,7 +109,7 @@ impl<'a> Ctx<'a> {
 
     /// Whether the scenario is a pilot.
     pub(crate) fn pilot(&self, scenario: &str) -> bool {
-        self.doc
+        self.env
             .corpus
             .scenarios
             .iter()
@@ -108,7 +118,7 @@ impl<'a> Ctx<'a> {
 
     /// Clips of a group (thresholds carry them for aggregates too).
     pub(crate) fn n_clips(&self, group: &str) -> Option<usize> {
-        self.doc
+        self.env
             .corpus
             .scenarios
             .iter()
@@ -118,7 +128,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// Whether a dose point passes the headline budget.
-    pub(crate) fn passes(&self, d: &DosePointDoc) -> bool {
+    pub(crate) fn passes(&self, d: &DosePoint) -> bool {
         let key = format!("{}", self.hb);
         d.within_budget
             .get(&key)
@@ -128,7 +138,7 @@ impl<'a> Ctx<'a> {
 
     /// The corpus-wide high-severity share (all changed pairs).
     pub(crate) fn p_high_all(&self) -> Option<f64> {
-        self.doc
+        self.env
             .high_severity
             .by_scenario
             .iter()
@@ -138,7 +148,7 @@ impl<'a> Ctx<'a> {
 
     /// The `severe_factor` parameter.
     pub(crate) fn severe_factor(&self) -> f64 {
-        self.doc.param_f64("severe_factor").unwrap_or(1.5)
+        self.env.parameters.severe_factor
     }
 
     /// Display name of a group.
@@ -152,10 +162,24 @@ impl<'a> Ctx<'a> {
 
     /// The high-band names joined (`C4/C5`), or `high`.
     pub(crate) fn high_name(&self) -> String {
-        if self.doc.high_severity.bands.is_empty() {
+        if self.env.high_severity.bands.is_empty() {
             "high".into()
         } else {
-            self.doc.high_severity.bands.join("/")
+            self.env.high_severity.bands.join("/")
         }
     }
+}
+
+/// The axis of the ODD entry: the first ODD row's, else the `odd_family` parameter's, else
+/// the first axis.
+fn odd_axis(env: &Envelope) -> Option<String> {
+    if let Some(o) = env.odd.first() {
+        return Some(o.axis.clone());
+    }
+    let fam = &env.parameters.odd_family;
+    env.axes
+        .iter()
+        .find(|a| &a.axis == fam)
+        .or(env.axes.first())
+        .map(|a| a.axis.clone())
 }

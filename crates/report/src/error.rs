@@ -4,7 +4,11 @@
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ReportError {
-    /// `envelope.json` (or a closed-loop summary) does not parse as the documented schema.
+    /// `envelope.json` does not read into the envelope model
+    /// ([`fogline_envelope::Envelope::from_json`]: the message names the file and the field).
+    #[error(transparent)]
+    Envelope(#[from] fogline_envelope::EnvelopeError),
+    /// A closed-loop summary does not parse as its documented schema.
     #[error("{what}: does not match its schema at `{path}`")]
     Schema {
         /// Which document.
@@ -15,7 +19,8 @@ pub enum ReportError {
         #[source]
         source: serde_json::Error,
     },
-    /// The envelope was written with a schema version this report does not read.
+    /// An in-memory envelope has a schema version this report does not read (a file with
+    /// another version is refused by [`fogline_envelope::Envelope::from_json`]).
     #[error(
         "envelope schema version {found} is not supported (this report reads version {expected})"
     )]

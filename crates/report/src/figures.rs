@@ -94,7 +94,7 @@ pub(crate) fn dose_response(cx: &Ctx) -> Figure {
         );
     };
     let levels: Vec<f64> = cx
-        .doc
+        .env
         .axes
         .iter()
         .find(|a| a.axis == axis)
@@ -106,7 +106,7 @@ pub(crate) fn dose_response(cx: &Ctx) -> Figure {
          vertical line: σ* ({} rule); filled red dots exceed the budget. All panels share one y scale \
          (pilot scenarios' bands may be clipped).",
         fixed(100.0 * hb, 0),
-        cx.doc.param_text("rule").unwrap_or_default()
+        cx.env.parameters.rule.name()
     );
     let mut groups: Vec<String> = cx
         .scenarios
@@ -129,7 +129,7 @@ pub(crate) fn dose_response(cx: &Ctx) -> Figure {
     }
     let mut notes = Vec::new();
     if cx
-        .doc
+        .env
         .dose_response
         .iter()
         .all(|d| d.delta_ade_ci95_m.is_none())
@@ -454,7 +454,7 @@ pub(crate) fn severity(cx: &Ctx) -> Figure {
     const ID: &str = "fig-2a";
     const LABEL_: &str = "Figure 2a";
     let title = "Severity bands of changed pairs";
-    let sv = &cx.doc.severity;
+    let sv = &cx.env.severity;
     let caption = format!(
         "Left: L2 deviation (m) of the {} changed-CoC pairs, histogram as a density, with the fitted {}-component \
          Gaussian mixture (black), its components (coloured by band) and the band boundaries where the \
@@ -828,7 +828,7 @@ pub(crate) fn transitions(cx: &Ctx) -> Figure {
     const ID: &str = "fig-2b";
     const LABEL_: &str = "Figure 2b";
     let title = "Action transitions of changed pairs";
-    let tr = &cx.doc.transitions;
+    let tr = &cx.env.transitions;
     let caption = format!(
         "Action of the clean CoC (rows) against the action of the perturbed CoC (columns) for the {} changed pairs \
          of classified scenarios; cell colour is the row share, the number is the count; the right column gives \
@@ -979,7 +979,7 @@ pub(crate) fn joint(cx: &Ctx) -> Figure {
     const ID: &str = "fig-3";
     const LABEL_: &str = "Figure 3";
     let title = "Joint scenario × severity distribution";
-    let j = &cx.doc.joint;
+    let j = &cx.env.joint;
     let hn = cx.high_name();
     let caption = format!(
         "Left: share of each classified scenario's changed-CoC pairs in bands {} (n at the right). Right: \
@@ -996,7 +996,7 @@ pub(crate) fn joint(cx: &Ctx) -> Figure {
         let why = if j.bands.is_empty() {
             format!(
                 "there are no severity bands ({}), so changed pairs cannot be split by severity.",
-                cx.doc
+                cx.env
                     .severity
                     .reason
                     .clone()
@@ -1038,7 +1038,7 @@ pub(crate) fn joint(cx: &Ctx) -> Figure {
     );
     let mut notes = Vec::new();
     let mut desc = String::new();
-    let high_defined = !cx.doc.high_severity.bands.is_empty();
+    let high_defined = !cx.env.high_severity.bands.is_empty();
     let p_all = cx.p_high_all();
     let mut pmax = p_all.map_or(0.0, |p| p * cx.severe_factor());
     for sc in &j.scenarios {
@@ -1293,14 +1293,14 @@ pub(crate) fn delta_map(cx: &Ctx) -> Figure {
                    scaled to the largest |ΔADE|). * pilot."
         .to_string();
     let conds: Vec<&str> = cx
-        .doc
+        .env
         .corpus
         .conditions
         .iter()
         .map(|c| c.name.as_str())
         .collect();
     let mut rows: Vec<&str> = Vec::new();
-    for m in &cx.doc.delta_ade_map {
+    for m in &cx.env.delta_ade_map {
         if !rows.contains(&m.scenario.as_str()) {
             rows.push(&m.scenario);
         }
@@ -1315,7 +1315,7 @@ pub(crate) fn delta_map(cx: &Ctx) -> Figure {
         );
     }
     let vmax = cx
-        .doc
+        .env
         .delta_ade_map
         .iter()
         .map(|m| m.delta_ade_m.abs())
@@ -1361,7 +1361,7 @@ pub(crate) fn delta_map(cx: &Ctx) -> Figure {
         for (j, cn) in conds.iter().enumerate() {
             let x = lx + j as f64 * cw;
             let cell = cx
-                .doc
+                .env
                 .delta_ade_map
                 .iter()
                 .find(|m| m.scenario == *r && m.condition == *cn);

@@ -24,7 +24,6 @@
 
 pub mod closed_loop;
 mod ctx;
-pub mod doc;
 mod draw;
 pub mod error;
 mod figures;
@@ -33,10 +32,10 @@ mod tables;
 
 use std::fmt::Write as _;
 
+use fogline_envelope::Envelope;
 use serde::{Deserialize, Serialize};
 
 pub use closed_loop::{ClosedLoop, ClosedLoopRow, check_closed_loop, closed_loop_from_json};
-pub use doc::EnvelopeDoc;
 pub use error::{ReportError, Result};
 pub use figures::Figure;
 
@@ -44,10 +43,10 @@ use ctx::Ctx;
 use draw::esc;
 
 /// What a report shows.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ReportInput {
-    /// The envelope (`envelope.json`).
-    pub envelope: EnvelopeDoc,
+    /// The envelope: the analysis's own model of `envelope.json` (its one typed definition).
+    pub envelope: Envelope,
     /// L2 deviations (m) of the changed pairs the mixture was fitted on, for the histogram of
     /// figure 2a. `envelope.json` does not hold them; without them the figure shows the
     /// mixture alone, with a note.
@@ -59,8 +58,8 @@ pub struct ReportInput {
 }
 
 impl ReportInput {
-    /// A report of an envelope alone.
-    pub fn new(envelope: EnvelopeDoc) -> Self {
+    /// A report of an envelope alone (checked by [`render`]).
+    pub fn new(envelope: Envelope) -> Self {
         Self {
             envelope,
             changed_l2_m: None,
@@ -68,14 +67,19 @@ impl ReportInput {
         }
     }
 
-    /// From an in-memory analysis result.
-    pub fn from_envelope(env: &fogline_envelope::Envelope) -> Result<Self> {
-        Ok(Self::new(EnvelopeDoc::from_envelope(env)?))
+    /// From an in-memory analysis result (checked with [`check_envelope`]).
+    pub fn from_envelope(env: &Envelope) -> Result<Self> {
+        check_envelope(env)?;
+        Ok(Self::new(env.clone()))
     }
 
-    /// From the text of an `envelope.json`; `what` names it in errors (e.g. its path).
+    /// From the text of an `envelope.json`, read with [`Envelope::from_json`] (schema version
+    /// first; a missing or mistyped field is named by its JSON path) and checked with
+    /// [`check_envelope`]; `what` names the file in errors (e.g. its path).
     pub fn from_envelope_json(text: &str, what: &str) -> Result<Self> {
-        Ok(Self::new(EnvelopeDoc::from_json(text, what)?))
+        let env = Envelope::from_json(text, what)?;
+        check_envelope(&env)?;
+        Ok(Self::new(env))
     }
 
     /// Takes the changed pairs' L2 values from the pairs table the envelope was computed
@@ -180,7 +184,7 @@ const CSS: &str = include_str!("report.css");
 /// Renders the page.
 pub fn render(input: &ReportInput, params: &ReportParams) -> Result<Report> {
     params.validate()?;
-    input.envelope.check()?;
+    check_envelope(&input.envelope)?;
     if let Some(cl) = &input.closed_loop {
         check_closed_loop(cl)?;
     }
@@ -337,7 +341,45 @@ pub fn render(input: &ReportInput, params: &ReportParams) -> Result<Report> {
     })
 }
 
-fn notes(d: &EnvelopeDoc) -> String {
+/// What the drawing relies on beyond the envelope's types: the schema version this report
+/// reads, and matrix shapes and finite axis levels.
+pub fn check_envelope(env: &Envelope) -> Result<()> {
+    let expected = fogline_envelope::model::SCHEMA_VERSION;
+    if env.schema_version != expected {
+        return Err(ReportError::SchemaVersion {
+            found: env.schema_version,
+            expected,
+        });
+    }
+    let bad = |what: String, reason: &str| {
+        Err(ReportError::Invalid {
+            what,
+            reason: reason.to_string(),
+        })
+    };
+    let j = &env.joint;
+    if j.counts.len() != j.scenarios.len() || j.counts.iter().any(|r| r.len() != j.bands.len()) {
+        return bad(
+            "joint.counts".into(),
+            "shape differs from scenarios × bands",
+        );
+    }
+    let t = &env.transitions;
+    if t.counts.len() != t.labels.len() || t.counts.iter().any(|r| r.len() != t.labels.len()) {
+        return bad(
+            "transitions.counts".into(),
+            "shape differs from labels × labels",
+        );
+    }
+    for a in &env.axes {
+        if a.levels.iter().any(|l| !l.is_finite()) {
+            return bad(format!("axes[{}].levels", a.axis), "not finite");
+        }
+    }
+    Ok(())
+}
+
+fn notes(d: &Envelope) -> String {
     if d.notes.is_empty() {
         return String::new();
     }

@@ -2,6 +2,8 @@
 
 use std::cmp::Ordering;
 
+use fogline_envelope::model::VsAggregate;
+
 use crate::ctx::{AGG_ALL, Ctx};
 use crate::draw::{esc, fixed, level, olevel, opct, pct};
 
@@ -21,7 +23,7 @@ fn list(items: &[String]) -> String {
 
 /// The summary as an HTML list.
 pub(crate) fn render(cx: &Ctx) -> String {
-    let d = cx.doc;
+    let d = cx.env;
     let mut items: Vec<String> = Vec::new();
     let c = &d.corpus;
     items.push(format!(
@@ -81,8 +83,8 @@ pub(crate) fn render(cx: &Ctx) -> String {
             olevel(t.sigma_star),
             if t.right_censored { "+" } else { "" }
         );
-        match t.vs_aggregate.as_deref() {
-            Some("looser") => {
+        match t.vs_aggregate {
+            Some(VsAggregate::Looser) => {
                 let firm = match (t.ci95, agg) {
                     (Some([lo, _]), Some(a)) => ord(lo, a.sigma_star, &levels) == Ordering::Greater,
                     _ => false,
@@ -98,9 +100,9 @@ pub(crate) fn render(cx: &Ctx) -> String {
                     }
                 ));
             }
-            Some("tighter") => tighter.push(cell),
-            Some("matches") => matches.push(cell),
-            _ => {}
+            Some(VsAggregate::Tighter) => tighter.push(cell),
+            Some(VsAggregate::Matches) => matches.push(cell),
+            None => {}
         }
     }
     if !looser.is_empty() {
@@ -136,7 +138,7 @@ pub(crate) fn render(cx: &Ctx) -> String {
     if !pilots.is_empty() {
         items.push(format!(
             "<strong>Pilot estimates</strong> (fewer than {} clips; indicative only): {}.",
-            esc(&d.param_text("min_clips").unwrap_or_else(|| "30".into())),
+            d.parameters.min_clips,
             pilots.join(", ")
         ));
     }
@@ -219,13 +221,14 @@ pub(crate) fn render(cx: &Ctx) -> String {
         }
     }
     // Acceptance.
-    match d.param_f64("pi_star") {
+    match d.parameters.pi_star {
         None => items.push(
             "<strong>Acceptance.</strong> No residual-risk budget π* was given, so no scenario was accepted or rejected (rerun the analysis with <code>--pi-star</code>).".into(),
         ),
         Some(pi) => {
             let sigma_op = d
-                .param_f64("sigma_op")
+                .parameters
+                .sigma_op
                 .map(level)
                 .or_else(|| agg.map(|t| olevel(t.sigma_star)))
                 .unwrap_or_else(|| "—".into());

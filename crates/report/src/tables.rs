@@ -3,8 +3,9 @@
 
 use std::fmt::Write as _;
 
+use fogline_envelope::model::Threshold;
+
 use crate::ctx::{AGG_ALL, Ctx};
-use crate::doc::ThresholdDoc;
 use crate::draw::{esc, fixed, level, olevel, opct, pct, pval, sval, val};
 
 /// A table builder: header cells, then rows of already-escaped cells.
@@ -56,7 +57,7 @@ impl Table {
     }
 }
 
-fn threshold_cell(t: &ThresholdDoc) -> String {
+fn threshold_cell(t: &Threshold) -> String {
     format!(
         "≤&nbsp;{}{}{}",
         esc(&olevel(t.sigma_star)),
@@ -95,7 +96,7 @@ pub(crate) fn table1(cx: &Ctx) -> String {
         ],
         &num,
     );
-    let mut rows: Vec<_> = cx.doc.corpus.scenarios.iter().collect();
+    let mut rows: Vec<_> = cx.env.corpus.scenarios.iter().collect();
     rows.sort_by_key(|s| (s.rank.is_none(), s.rank.unwrap_or(0)));
     for s in rows {
         t.row(
@@ -110,7 +111,7 @@ pub(crate) fn table1(cx: &Ctx) -> String {
             &num,
         );
     }
-    let c = &cx.doc.corpus;
+    let c = &cx.env.corpus;
     t.row(
         &[
             "all".into(),
@@ -126,13 +127,9 @@ pub(crate) fn table1(cx: &Ctx) -> String {
         ],
         &num,
     );
-    let min = cx
-        .doc
-        .param_text("min_clips")
-        .unwrap_or_else(|| "30".into());
     let mut foot = format!(
         "* pilot: fewer than {} clips. Unclassified labels (rank —) count in the aggregates only.",
-        esc(&min)
+        cx.env.parameters.min_clips
     );
     if c.n_incomplete_clips > 0 {
         let _ = write!(
@@ -170,7 +167,7 @@ pub(crate) fn table2(cx: &Ctx) -> String {
         &num,
     );
     for th in cx
-        .doc
+        .env
         .thresholds
         .iter()
         .filter(|t| t.axis == axis && t.budget == hb)
@@ -182,7 +179,7 @@ pub(crate) fn table2(cx: &Ctx) -> String {
                 th.n_clips.to_string(),
                 threshold_cell(th),
                 ci(th.ci95),
-                th.vs_aggregate.as_deref().map_or("—".into(), esc),
+                th.vs_aggregate.map_or("—".into(), |v| v.name().into()),
                 opct(th.bootstrap_share.get(&key).copied()),
             ],
             &num,
@@ -193,15 +190,12 @@ pub(crate) fn table2(cx: &Ctx) -> String {
          <em>none</em>: the smallest tested level already fails.",
     );
     // Every budget.
-    let budgets: Vec<f64> = cx
-        .doc
-        .parameters
-        .get("budgets")
-        .and_then(|v| v.as_array())
-        .map(|a| a.iter().filter_map(serde_json::Value::as_f64).collect())
-        .unwrap_or_else(|| vec![hb]);
+    let budgets: &[f64] = match cx.env.parameters.budgets.as_slice() {
+        [] => &[hb],
+        b => b,
+    };
     let mut groups: Vec<&str> = Vec::new();
-    for th in &cx.doc.thresholds {
+    for th in &cx.env.thresholds {
         if !groups.contains(&th.scenario.as_str()) {
             groups.push(&th.scenario);
         }
@@ -224,10 +218,9 @@ pub(crate) fn table2(cx: &Ctx) -> String {
     );
     for g in &groups {
         let mut cells = vec![esc(&Ctx::group_name(g))];
-        for b in &budgets {
+        for b in budgets {
             cells.push(
-                cx.doc
-                    .threshold(g, &axis, *b)
+                cx.threshold(g, &axis, *b)
                     .map_or("—".into(), threshold_cell),
             );
         }
@@ -235,7 +228,7 @@ pub(crate) fn table2(cx: &Ctx) -> String {
     }
     s.push_str(&t.finish(""));
     // Every family.
-    let axes = &cx.doc.axes;
+    let axes = &cx.env.axes;
     let heads: Vec<String> = std::iter::once("Scenario".to_string())
         .chain(axes.iter().map(|a| {
             format!(
@@ -265,7 +258,7 @@ pub(crate) fn table2(cx: &Ctx) -> String {
     for g in &groups {
         let mut cells = vec![esc(&Ctx::group_name(g))];
         for a in axes {
-            cells.push(cx.doc.threshold(g, &a.axis, hb).map_or("—".into(), |t| {
+            cells.push(cx.threshold(g, &a.axis, hb).map_or("—".into(), |t| {
                 format!("{} {}", threshold_cell(t), ci(t.ci95))
             }));
         }
@@ -294,9 +287,9 @@ pub(crate) fn dose_table(cx: &Ctx) -> String {
         ],
         &num,
     );
-    for a in &cx.doc.axes {
+    for a in &cx.env.axes {
         let mut groups: Vec<&str> = Vec::new();
-        for d in cx.doc.dose_response.iter().filter(|d| d.axis == a.axis) {
+        for d in cx.env.dose_response.iter().filter(|d| d.axis == a.axis) {
             if !groups.contains(&d.scenario.as_str()) {
                 groups.push(&d.scenario);
             }
@@ -329,7 +322,7 @@ pub(crate) fn dose_table(cx: &Ctx) -> String {
 
 /// Table 3: severity bands, the BIC study, cross-validation and per-scenario mixtures.
 pub(crate) fn table3(cx: &Ctx) -> String {
-    let sv = &cx.doc.severity;
+    let sv = &cx.env.severity;
     if !sv.defined {
         return format!(
             "<p class=\"note\" id=\"table-3\">Table 3 is empty: the severity mixture is undefined ({}).</p>\n",
@@ -371,10 +364,10 @@ pub(crate) fn table3(cx: &Ctx) -> String {
                 .map(|b| val(*b))
                 .collect::<Vec<_>>()
                 .join(", "),
-            if cx.doc.high_severity.bands.is_empty() {
+            if cx.env.high_severity.bands.is_empty() {
                 "none".into()
             } else {
-                esc(&cx.doc.high_severity.bands.join(", "))
+                esc(&cx.env.high_severity.bands.join(", "))
             }
         )
     };
@@ -460,7 +453,7 @@ pub(crate) fn table3(cx: &Ctx) -> String {
 
 /// High-severity shares per scenario and per condition, and the joint table (figure 3's data).
 pub(crate) fn high_tables(cx: &Ctx) -> String {
-    let hs = &cx.doc.high_severity;
+    let hs = &cx.env.high_severity;
     let hn = cx.high_name();
     let mut s = String::new();
     if hs.bands.is_empty() {
@@ -501,7 +494,7 @@ pub(crate) fn high_tables(cx: &Ctx) -> String {
         }
         s.push_str(&t.finish(""));
     }
-    let j = &cx.doc.joint;
+    let j = &cx.env.joint;
     if !j.bands.is_empty() {
         let heads: Vec<String> = std::iter::once("Scenario".to_string())
             .chain(j.bands.iter().map(|b| esc(b)))
@@ -538,12 +531,12 @@ pub(crate) fn high_tables(cx: &Ctx) -> String {
 
 /// Table 4: the two-dimensional ODD entry.
 pub(crate) fn table4(cx: &Ctx) -> String {
-    if cx.doc.odd.is_empty() {
+    if cx.env.odd.is_empty() {
         return "<p class=\"note\" id=\"table-4\">Table 4 is empty: no classified scenario has an ODD entry.</p>\n".into();
     }
     let num = [false, true, true, true, true, false, false];
     let hn = cx.high_name();
-    let pi = cx.doc.param_f64("pi_star");
+    let pi = cx.env.parameters.pi_star;
     let mut t = Table::new(
         "table-4",
         &format!(
@@ -567,7 +560,7 @@ pub(crate) fn table4(cx: &Ctx) -> String {
         ],
         &num,
     );
-    for o in &cx.doc.odd {
+    for o in &cx.env.odd {
         let accepted = match (o.accepted, &o.acceptance_reason) {
             (None, _) => "— (no π*)".to_string(),
             (Some(a), Some(r)) => format!(
@@ -608,7 +601,7 @@ pub(crate) fn table4(cx: &Ctx) -> String {
 
 /// The statistics.
 pub(crate) fn statistics(cx: &Ctx) -> String {
-    let st = &cx.doc.statistics;
+    let st = &cx.env.statistics;
     let num = [false, false];
     let mut t = Table::new(
         "table-statistics",
@@ -723,8 +716,8 @@ pub(crate) fn statistics(cx: &Ctx) -> String {
         "action kept by changed CoC (transition diagonal)",
         format!(
             "{} of {} pairs",
-            opct(cx.doc.transitions.diagonal_share),
-            cx.doc.transitions.n
+            opct(cx.env.transitions.diagonal_share),
+            cx.env.transitions.n
         ),
     );
     for (k, v) in &st.undefined {
@@ -735,7 +728,7 @@ pub(crate) fn statistics(cx: &Ctx) -> String {
 
 /// Table 5: the ISO 21448 assurance mapping and the A1 budget-sensitivity check.
 pub(crate) fn table5(cx: &Ctx) -> String {
-    let a = &cx.doc.assurance;
+    let a = &cx.env.assurance;
     let num = [false, false, false];
     let mut t = Table::new(
         "table-5",
@@ -750,7 +743,7 @@ pub(crate) fn table5(cx: &Ctx) -> String {
     }
     let mut s = t.finish("");
     if !a.budget_sensitivity.is_empty() {
-        let sens = cx.doc.param_f64("budget_sensitivity").unwrap_or(0.05);
+        let sens = cx.env.parameters.budget_sensitivity;
         let hb = cx.hb;
         let h1 = format!("σ* at {}%", fixed(100.0 * hb * (1.0 - sens), 2));
         let h2 = format!("σ* at {}%", fixed(100.0 * hb, 0));
@@ -784,7 +777,7 @@ pub(crate) fn table5(cx: &Ctx) -> String {
 
 /// The run: input and checksum, producer, every parameter.
 pub(crate) fn parameters(cx: &Ctx) -> String {
-    let d = cx.doc;
+    let d = cx.env;
     let num = [false, false];
     let mut t = Table::new(
         "table-input",
@@ -798,7 +791,7 @@ pub(crate) fn parameters(cx: &Ctx) -> String {
             format!(
                 "<code>{}</code> ({})",
                 esc(&d.input.path),
-                esc(&d.input.format)
+                esc(d.input.format.name())
             ),
         ],
         &num,
@@ -841,7 +834,12 @@ pub(crate) fn parameters(cx: &Ctx) -> String {
         &["Parameter", "Value"],
         &num,
     );
-    for (k, v) in &d.parameters {
+    // Rendered generically from the parameters' JSON form, in key order.
+    let params = match serde_json::to_value(&d.parameters) {
+        Ok(serde_json::Value::Object(m)) => m,
+        _ => serde_json::Map::new(),
+    };
+    for (k, v) in &params {
         let text = match v {
             serde_json::Value::String(s) => s.clone(),
             serde_json::Value::Null => "null (off / default)".into(),
@@ -856,11 +854,11 @@ pub(crate) fn parameters(cx: &Ctx) -> String {
 /// Every convention.
 pub(crate) fn conventions(cx: &Ctx) -> String {
     let mut s = String::from("<dl class=\"conventions\" id=\"conventions-list\">\n");
-    for (k, v) in &cx.doc.conventions {
+    for (k, v) in &cx.env.conventions {
         let _ = writeln!(s, "<dt><code>{}</code></dt><dd>{}</dd>", esc(k), esc(v));
     }
     s.push_str("</dl>\n");
-    if cx.doc.conventions.is_empty() {
+    if cx.env.conventions.is_empty() {
         s = "<p class=\"note\">The envelope records no conventions.</p>\n".into();
     }
     s

@@ -465,4 +465,33 @@ fn envelope_json_reads_back_exactly() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("thresholds"), "{e}");
+    // A mistyped value is named by its JSON path (the report relies on it).
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["corpus"]["scenarios"][0]["n_clips"] = "many".into();
+    let e = Envelope::from_json(&v.to_string(), "e/envelope.json")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("e/envelope.json") && e.contains("corpus.scenarios[0].n_clips"),
+        "{e}"
+    );
+    // Trailing content is refused, as by `serde_json::from_str`.
+    assert!(Envelope::from_json(&format!("{text} {{}}"), "envelope.json").is_err());
+}
+
+/// The enums' `name()` is what `envelope.json` writes.
+#[test]
+fn enum_names_are_their_json_names() {
+    use fogline_envelope::input::Format;
+    use fogline_envelope::model::VsAggregate;
+    for v in [
+        VsAggregate::Tighter,
+        VsAggregate::Matches,
+        VsAggregate::Looser,
+    ] {
+        assert_eq!(serde_json::to_value(v).unwrap(), v.name());
+    }
+    for f in [Format::Csv, Format::Parquet, Format::Jsonl, Format::Arrow] {
+        assert_eq!(serde_json::to_value(f).unwrap(), f.name());
+    }
 }

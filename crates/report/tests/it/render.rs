@@ -86,7 +86,8 @@ fn every_figure_and_table_is_on_the_page() {
             .replace('\'', "&#39;");
         assert!(r.html.contains(&escaped), "convention text {k}");
     }
-    for k in input.envelope.parameters.keys() {
+    let params = serde_json::to_value(&input.envelope.parameters).unwrap();
+    for k in params.as_object().unwrap().keys() {
         assert!(
             r.html.contains(&format!("<code>{k}</code>")),
             "parameter {k}"
@@ -142,9 +143,20 @@ fn schema_errors_name_the_field() {
         msg.contains("e/envelope.json") && msg.contains("severity.bands[0].mean_m"),
         "{msg}"
     );
+    // A file of another schema version is refused by the envelope's reader ...
     v["schema_version"] = 2.into();
     v["severity"]["bands"][0]["mean_m"] = 1.0.into();
-    let e = ReportInput::from_envelope_json(&v.to_string(), "x").unwrap_err();
+    let e = ReportInput::from_envelope_json(&v.to_string(), "x/envelope.json").unwrap_err();
+    assert!(matches!(e, ReportError::Envelope(_)), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("x/envelope.json") && msg.contains("schema_version 2"),
+        "{msg}"
+    );
+    // ... and an in-memory one by the report.
+    let mut input = fixture();
+    input.envelope.schema_version = 2;
+    let e = render(&input, &ReportParams::default()).unwrap_err();
     assert!(
         matches!(
             e,
@@ -155,6 +167,17 @@ fn schema_errors_name_the_field() {
         ),
         "{e}"
     );
+}
+
+#[test]
+fn malformed_matrices_are_refused() {
+    let mut input = fixture();
+    input.envelope.joint.counts.pop();
+    let e = render(&input, &ReportParams::default()).unwrap_err();
+    assert!(e.to_string().contains("joint.counts"), "{e}");
+    let json = serde_json::to_string(&input.envelope).unwrap();
+    let e = ReportInput::from_envelope_json(&json, "e/envelope.json").unwrap_err();
+    assert!(e.to_string().contains("joint.counts"), "{e}");
 }
 
 #[test]
