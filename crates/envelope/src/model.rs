@@ -334,9 +334,9 @@ pub struct Joint {
     pub scenarios: Vec<String>,
     /// Columns.
     pub bands: Vec<String>,
-    /// Counts [scenario][band].
+    /// Counts `[scenario][band]`.
     pub counts: Vec<Vec<usize>>,
-    /// Row shares [scenario][band] (each row sums to 1; empty rows are all 0).
+    /// Row shares `[scenario][band]` (each row sums to 1; empty rows are all 0).
     pub row_shares: Vec<Vec<f64>>,
 }
 
@@ -463,7 +463,7 @@ pub struct ActionDiagonal {
 pub struct Transitions {
     /// Action labels (rows: clean, columns: perturbed).
     pub labels: Vec<String>,
-    /// Counts [clean][perturbed].
+    /// Counts `[clean][perturbed]`.
     pub counts: Vec<Vec<usize>>,
     /// Pairs in the matrix.
     pub n: usize,
