@@ -1968,5 +1968,23 @@ mod tests {
         ] {
             assert_eq!(plain.rect(x0, y0, x1, y1), pooled.rect(x0, y0, x1, y1));
         }
+        // Rectangles past what one packed look-up sums exactly (8,224 pixels of 255) are
+        // summed in bands: still exact, on a saturated frame and a busy one.
+        let calib = fogline_types::clip::CameraCalib::standard(CameraId::FrontWide, 300, 200);
+        for fill in [|_| 255u8, |i: usize| (i * 7919 % 256) as u8] {
+            let rgb: Vec<u8> = (0..300 * 200 * 3).map(fill).collect();
+            let plain = View::plain(&calib, &rgb, Some(0.0));
+            let pooled = View::plain(&calib, &rgb, Some(0.0)).pooled();
+            for (x0, y0, x1, y1) in [
+                (0, 0, 300, 200),
+                (0, 0, 91, 91),
+                (0, 0, 92, 90),
+                (10, 3, 11, 200),
+                (-5, 17, 299, 140),
+                (150, 0, 151, 1),
+            ] {
+                assert_eq!(plain.rect(x0, y0, x1, y1), pooled.rect(x0, y0, x1, y1));
+            }
+        }
     }
 }
