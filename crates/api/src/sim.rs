@@ -3,14 +3,52 @@
 
 use std::io::Write;
 use std::path::Path;
-use std::time::Instant;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use fogline_sim::experiment::{ExperimentParams, Results, run_experiment};
+use fogline_campaign::config::PlannerConfig;
+use fogline_campaign::planner_from;
+use fogline_sim::experiment::{ExperimentParams, Results, run_experiment_with};
 use fogline_sim::output::{Written, markdown, write_all};
+use fogline_types::planner::Planner;
 
-/// Runs the experiment of `params` and writes its files into `out`.
-pub fn run(params: &ExperimentParams, out: &Path) -> Result<(Results, Written)> {
+/// The planner under test that `spec` names, for `fogline sim run --planner`: `builtin`
+/// (the reference planner, followed by its trajectory instead of the baseline's rules),
+/// `http://HOST:PORT[/PREFIX]` (fogline's HTTP/JSON planner contract) or
+/// `egodriver://HOST:PORT` (AlpaSim's egodriver gRPC contract); PNG frames, `timeout_s`
+/// per request.
+pub fn planner_at(spec: &str, timeout_s: f64) -> Result<Arc<dyn Planner>> {
+    let (kind, endpoint) = if spec == "builtin" {
+        ("builtin", None)
+    } else if spec.starts_with("http://") {
+        ("http", Some(spec.to_string()))
+    } else if let Some(rest) = spec.strip_prefix("egodriver://") {
+        ("egodriver", Some(rest.to_string()))
+    } else {
+        anyhow::bail!(
+            "--planner {spec:?}: expected `builtin`, `http://HOST:PORT` or `egodriver://HOST:PORT`"
+        );
+    };
+    if !(timeout_s.is_finite() && timeout_s > 0.0) {
+        anyhow::bail!("planner timeout {timeout_s} s: expected a positive number of seconds");
+    }
+    let config = PlannerConfig {
+        kind: kind.into(),
+        endpoint,
+        ..PlannerConfig::default()
+    };
+    planner_from(&config, Duration::from_secs_f64(timeout_s))
+        .with_context(|| format!("--planner {spec}"))
+}
+
+/// Runs the experiment of `params` and writes its files into `out`; `driver`, when given,
+/// drives every run instead of the baseline's rules ([`planner_at`]).
+pub fn run(
+    params: &ExperimentParams,
+    driver: Option<Arc<dyn Planner>>,
+    out: &Path,
+) -> Result<(Results, Written)> {
     params.validate()?;
     let n_routes = params
         .routes
@@ -35,7 +73,10 @@ pub fn run(params: &ExperimentParams, out: &Path) -> Result<(Results, Written)> 
             );
         }
     };
-    let results = run_experiment(params, 0, &progress)?;
+    if let Some(d) = &driver {
+        log::info!("sim run: driven by {}", d.describe());
+    }
+    let results = run_experiment_with(params, driver, 0, &progress)?;
     let written = write_all(&results, out)
         .with_context(|| format!("writing results to {}", out.display()))?;
     Ok((results, written))
@@ -56,6 +97,9 @@ pub fn write_summary(
             "wall_s": results.wall_s,
             "threads": results.threads,
             "warnings": results.warnings,
+            "driver": results.driver,
+            "plans": results.records.iter().map(|r| r.plans).sum::<u64>(),
+            "plan_errors": results.records.iter().map(|r| r.plan_errors).sum::<u64>(),
             "files": {
                 "results": written.results,
                 "records": written.records,
@@ -94,6 +138,14 @@ pub fn write_summary(
             ""
         }
     )?;
+    let plans: u64 = results.records.iter().map(|r| r.plans).sum();
+    let failed: u64 = results.records.iter().map(|r| r.plan_errors).sum();
+    if failed > 0 {
+        writeln!(
+            out,
+            "warning: {failed} of {plans} planner calls failed (the car braked on them; `plan_errors` in records.jsonl, `-v` logs why)"
+        )?;
+    }
     for w in &results.warnings {
         writeln!(out, "warning: {w}")?;
     }

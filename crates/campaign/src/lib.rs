@@ -30,7 +30,14 @@ use fogline_remote::Planner;
 
 /// The planner a configuration names.
 pub fn planner_for(config: &CampaignConfig) -> Result<Arc<dyn Planner>, CampaignError> {
-    let p = &config.planner;
+    planner_from(&config.planner, config.run.timeout())
+}
+
+/// The planner a `[planner]` table names, its requests timed out after `timeout`.
+pub fn planner_from(
+    p: &config::PlannerConfig,
+    timeout: std::time::Duration,
+) -> Result<Arc<dyn Planner>, CampaignError> {
     let image_format = if p.image_format == "jpeg" {
         fogline_remote::ImageFormat::Jpeg {
             quality: p.jpeg_quality,
@@ -44,7 +51,7 @@ pub fn planner_for(config: &CampaignConfig) -> Result<Arc<dyn Planner>, Campaign
         "egodriver" => Arc::new(
             fogline_remote::egodriver::Client::new(fogline_remote::egodriver::ClientOptions {
                 endpoint,
-                timeout: config.run.timeout(),
+                timeout,
                 image_format,
                 explanation_fields: p.explanation_fields.clone(),
             })
@@ -53,7 +60,7 @@ pub fn planner_for(config: &CampaignConfig) -> Result<Arc<dyn Planner>, Campaign
         "http" => Arc::new(
             fogline_remote::http::Client::new(fogline_remote::http::ClientOptions {
                 url: endpoint,
-                timeout: config.run.timeout(),
+                timeout,
                 image_format,
             })
             .map_err(|e| CampaignError::Planner(e.to_string()))?,

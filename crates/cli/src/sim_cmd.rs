@@ -96,6 +96,10 @@ struct RunArgs {
     /// Agent steps per second (frames, planner, RCO); must divide 20.
     #[arg(long, default_value_t = 2.5)]
     agent_hz: f64,
+    /// A planner under test driving instead of the baseline's rules: `builtin`,
+    /// `http://HOST:PORT` or `egodriver://HOST:PORT` (60 s per request; docs/sim.md).
+    #[arg(long)]
+    planner: Option<String>,
     /// Print the summary as JSON on stdout instead of the tables.
     #[arg(long)]
     json: bool,
@@ -169,7 +173,10 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         llm_latency_ms,
         routes: (!a.routes.is_empty()).then(|| a.routes.clone()),
     };
-    let (results, written) = fogline_api::sim::run(&params, &a.out)?;
+    let driver = (a.planner.as_deref())
+        .map(|spec| fogline_api::sim::planner_at(spec, 60.0))
+        .transpose()?;
+    let (results, written) = fogline_api::sim::run(&params, driver, &a.out)?;
     fogline_api::sim::write_summary(
         &params,
         &results,

@@ -39,15 +39,23 @@
 //! **Unstick** (like TransFuser's creeping): after 55 s standing still, the agent ignores the
 //! planner for 4 s and drives at up to 4 m/s; the count restarts once it moves.
 //!
+//! **A planner under test** ([`Baseline::driven_by`], `fogline sim run --planner URL`) takes
+//! the rules' place: the car follows its trajectory's speed profile and stops where the
+//! trajectory comes to rest ([`trajectory_intent`]); the lead, stop and unstick rules above
+//! are off.
+//!
 //! **Steering**: pure pursuit on the dense route, look-ahead `0.8·v + 2` m (3.5–10 m) from the
 //! rear axle, the steer that the bicycle model needs for the pursuit curvature — the agent
 //! gets the route as CARLA agents get their global plan.
+
+use std::sync::Arc;
 
 use fogline_planner::ReferencePlanner;
 use fogline_planner::detect::ObjectSeen;
 use fogline_planner::perceive::{LeadSeen, Lost, ObjectKind};
 use fogline_types::clip::{CameraInput, Decision, EgoPose, PlannerInput};
 use fogline_types::motion::EGO_FRONT_M;
+use fogline_types::planner::{PlanRequest, Planner};
 use serde::{Deserialize, Serialize};
 
 use crate::geom::{dist, dot, sub};
@@ -117,6 +125,51 @@ pub struct Intent {
     pub unstick_stop_at_m: Option<f64>,
 }
 
+/// What a planned trajectory asks of the car: its waypoints `xy` (in the rig frame now,
+/// 0.1 s apart in the planner's time, which runs `speed_scale` times faster than the
+/// simulation's when the agent plans below 10 Hz — see [`crate::run`]) give the speed it
+/// plans half a second ahead (from its path between 0.3 s and 0.7 s), capped at `cap_mps`,
+/// and, when it comes to rest within its horizon (it moves less than
+/// [`TRAJECTORY_REST_M`] over its last second or more), the point where it stands, in
+/// distance driven from `odometer_m`: the agent brakes to it as to any stop point.
+pub fn trajectory_intent(
+    xy: &[[f64; 2]],
+    decision: Option<Decision>,
+    odometer_m: f64,
+    cap_mps: f64,
+    speed_scale: f64,
+) -> Intent {
+    let mut arc = Vec::with_capacity(xy.len() + 1);
+    arc.push(0.0);
+    let mut prev = [0.0, 0.0];
+    for q in xy {
+        let last = arc.last().copied().unwrap_or(0.0);
+        arc.push(last + (q[0] - prev[0]).hypot(q[1] - prev[1]));
+        prev = *q;
+    }
+    let total = arc.last().copied().unwrap_or(0.0);
+    let at = |k: usize| arc.get(k).copied().unwrap_or(total);
+    let planned = (at(7) - at(3)) / (0.4 * speed_scale.max(1e-9));
+    // The first waypoint from which the trajectory no longer moves; it rests there when
+    // that is at least a second (ten waypoints) before its end.
+    let rest = arc.iter().position(|&a| total - a < TRAJECTORY_REST_M);
+    let stop_at_m = rest
+        .filter(|&k| k + 10 <= xy.len())
+        .map(|k| odometer_m + at(k));
+    Intent {
+        decision,
+        target_mps: if planned.is_finite() {
+            planned.clamp(0.0, cap_mps)
+        } else {
+            0.0
+        },
+        stop_at_m,
+        lead_gap_m: None,
+        failed: false,
+        unstick_stop_at_m: None,
+    }
+}
+
 /// The baseline agent's state.
 #[derive(Debug, Clone)]
 pub struct Baseline {
@@ -147,7 +200,30 @@ pub struct Baseline {
     /// Seconds since a vehicle was last seen crossing the ego's path ahead.
     cross_quiet_s: f64,
     objects: Vec<ObjectSeen>,
+    /// A planner under test that drives instead of the baseline's rules.
+    driver: Option<Driver>,
 }
+
+/// A planner under test in the driver's seat ([`Baseline::driven_by`]).
+#[derive(Clone)]
+struct Driver {
+    planner: Arc<dyn Planner>,
+    scene_id: String,
+    seed: u64,
+}
+
+impl std::fmt::Debug for Driver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Driver")
+            .field("planner", &self.planner.describe())
+            .field("scene_id", &self.scene_id)
+            .finish_non_exhaustive()
+    }
+}
+
+/// A planned trajectory that moves less than this over its remaining waypoints has come to
+/// rest there, m.
+pub const TRAJECTORY_REST_M: f64 = 0.3;
 
 /// At a hidden signal the car goes only after no vehicle has crossed its path ahead for
 /// this long (the cross street's green has ended), s.
@@ -197,6 +273,32 @@ impl Baseline {
             hidden_stop: false,
             cross_quiet_s: 0.0,
             objects: Vec::new(),
+            driver: None,
+        }
+    }
+
+    /// An agent whose speed a planner under test decides — any [`Planner`]: a remote
+    /// policy behind AlpaSim's egodriver contract or HTTP, or your own — instead of the
+    /// baseline's rules. Every step the planner gets the same frames and ego history as the
+    /// reference planner would (with `scene_id` and `seed` as its request's identity), and
+    /// the agent follows its trajectory's speed profile ([`trajectory_intent`]) along the
+    /// route, capped by the cruise and turn speeds; a failed call brakes. The baseline's own
+    /// rules (lead keeping, stop memories, the unstick rule) are off: the planner answers for
+    /// them. The reference perception still runs on the frames, as the override's detector
+    /// ([`Baseline::objects`]), not as a driver.
+    pub fn driven_by(
+        params: AgentParams,
+        planner: Arc<dyn Planner>,
+        scene_id: String,
+        seed: u64,
+    ) -> Self {
+        Self {
+            driver: Some(Driver {
+                planner,
+                scene_id,
+                seed,
+            }),
+            ..Self::new(params)
         }
     }
 
@@ -291,6 +393,36 @@ impl Baseline {
         let p = &self.params;
         let cruise = p.cruise_mps.min(turn_cap_mps);
         let out = self.planner.plan_knowing(&pin, &self.lost);
+        if let Some(driver) = &self.driver {
+            // The reference perception is the override's detector here, not the driver.
+            self.objects = match &out {
+                Ok((perc, _)) => fogline_planner::detect::objects(perc, &pin),
+                Err(_) => Vec::new(),
+            };
+            let request = PlanRequest {
+                scene_id: &driver.scene_id,
+                seed: driver.seed,
+                input: pin,
+            };
+            self.intent = match driver.planner.plan(&request) {
+                Ok(answer) => trajectory_intent(
+                    &answer.trajectory.xy,
+                    answer.decision,
+                    odometer_m,
+                    cruise,
+                    speed_scale,
+                ),
+                Err(e) => {
+                    self.plan_errors += 1;
+                    log::debug!("planner under test at {odometer_m:.1} m: {e}");
+                    Intent {
+                        failed: true,
+                        ..Intent::default()
+                    }
+                }
+            };
+            return self.intent;
+        }
         let (perc, plan) = match out {
             Ok(x) => x,
             Err(_) => {
@@ -515,7 +647,7 @@ impl Baseline {
         }
         if self.unstick_left_s > 0.0 {
             self.unstick_left_s -= dt;
-        } else if self.stopped_s >= p.unstick_after_s {
+        } else if self.stopped_s >= p.unstick_after_s && self.driver.is_none() {
             self.unstick_left_s = p.unstick_for_s;
             self.unstick_count += 1;
             log::debug!(
@@ -787,6 +919,44 @@ pub fn idm(v: f64, v0: f64, gap: f64, dv: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_trajectory_gives_its_speed_half_a_second_ahead_and_where_it_rests() {
+        // 0.8 m a waypoint at a quarter of the planner's rate: 2 m/s in simulation time.
+        let cruising: Vec<[f64; 2]> = (1..=64).map(|k| [0.8 * f64::from(k), 0.0]).collect();
+        let i = trajectory_intent(&cruising, None, 100.0, 8.0, 4.0);
+        assert!((i.target_mps - 2.0).abs() < 1e-12, "{i:?}");
+        assert_eq!(i.stop_at_m, None);
+        assert!(!i.failed);
+        // Capped by the route's speed.
+        assert_eq!(
+            trajectory_intent(&cruising, None, 0.0, 1.5, 4.0).target_mps,
+            1.5
+        );
+        // Along a curve the path length counts, not the straight line.
+        let arc: Vec<[f64; 2]> = (1..=64)
+            .map(|k| {
+                let a = 0.02 * f64::from(k);
+                [20.0 * a.sin(), 20.0 * (1.0 - a.cos())]
+            })
+            .collect();
+        let i = trajectory_intent(&arc, None, 0.0, 99.0, 1.0);
+        assert!((i.target_mps - 4.0).abs() < 1e-3, "{i:?}");
+        // Comes to rest 10 m ahead (from waypoint 10 on) and stands there: stop 10 m on.
+        let stopping: Vec<[f64; 2]> = (1..=64).map(|k| [f64::from(k.min(10)), 0.0]).collect();
+        let i = trajectory_intent(&stopping, Some(Decision::StopForSign), 50.0, 8.0, 1.0);
+        assert_eq!(i.stop_at_m, Some(60.0));
+        assert_eq!(i.decision, Some(Decision::StopForSign));
+        // Still creeping at its end: no stop point.
+        let creeping: Vec<[f64; 2]> = (1..=64).map(|k| [0.05 * f64::from(k), 0.0]).collect();
+        assert_eq!(
+            trajectory_intent(&creeping, None, 0.0, 8.0, 1.0).stop_at_m,
+            None
+        );
+        // Standing still: target 0 and the stop point where it stands.
+        let i = trajectory_intent(&[[0.0, 0.0]; 64], None, 7.0, 8.0, 4.0);
+        assert_eq!((i.target_mps, i.stop_at_m), (0.0, Some(7.0)));
+    }
 
     #[test]
     fn speed_pid_brakes_and_accelerates() {

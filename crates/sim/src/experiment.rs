@@ -6,14 +6,16 @@
 //! depend on the number of threads (only the recorded wall-clock times do).
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Instant;
 
+use fogline_types::planner::Planner;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::SimError;
 use crate::config::{Config, modules_label};
-use crate::run::{Limit, RouteRecord, RunParams, run_route};
+use crate::run::{Limit, RouteRecord, RunParams, run_route_with};
 use crate::score::{EventKind, MeanStd, RouteScore, infractions_per_km};
 use crate::sense::DeficitKind;
 use crate::suite::{Suite, SuiteParams};
@@ -107,6 +109,9 @@ impl ExperimentParams {
 /// Everything an experiment produced.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Results {
+    /// Who drove: the baseline's rules, or the planner under test (its description).
+    #[serde(default)]
+    pub driver: String,
     /// The parameters.
     pub params: ExperimentParams,
     /// One record per (seed, configuration, route), in that order.
@@ -126,6 +131,17 @@ pub struct Results {
 /// current rayon pool), calling `progress(done, total)` after each run.
 pub fn run_experiment(
     params: &ExperimentParams,
+    threads: usize,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Results, SimError> {
+    run_experiment_with(params, None, threads, progress)
+}
+
+/// [`run_experiment`] with a planner under test driving every run instead of the
+/// baseline's rules (`None`: the baseline; see [`crate::agent::Baseline::driven_by`]).
+pub fn run_experiment_with(
+    params: &ExperimentParams,
+    driver: Option<Arc<dyn Planner>>,
     threads: usize,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Results, SimError> {
@@ -173,12 +189,13 @@ pub fn run_experiment(
             .map(|&(si, ci, ri)| {
                 let suite = &suites[si];
                 let case = &suite.cases[ri];
-                let r = run_route(
+                let r = run_route_with(
                     &suite.towns[case.town],
                     case,
                     &params.configs[ci],
                     &params.run,
                     params.seeds[si],
+                    driver.as_ref(),
                 );
                 let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(n, total);
@@ -198,6 +215,10 @@ pub fn run_experiment(
     let wall_s = wall.elapsed().as_secs_f64();
     let summary = Summary::of(params, &records);
     Ok(Results {
+        driver: driver.map_or_else(
+            || "the baseline's rules on the reference planner".to_string(),
+            |d| d.describe(),
+        ),
         params: params.clone(),
         records,
         summary,

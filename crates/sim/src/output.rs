@@ -282,10 +282,11 @@ pub fn markdown(results: &Results) -> String {
     let _ = writeln!(out, "# Closed-loop evaluation (`fogline sim run`)\n");
     let _ = writeln!(
         out,
-        "Suite `{}`: {} route(s), seed(s) {:?}; RCO backend {}; system-time limit {:.0} s with {}.\n",
+        "Suite `{}`: {} route(s), seed(s) {:?}; driven by {}; RCO backend {}; system-time limit {:.0} s with {}.\n",
         p.suite.name,
         p.suite.n_routes(),
         p.seeds,
+        results.driver,
         p.configs
             .iter()
             .find_map(|c| c.rco.as_ref().map(|r| r.backend.describe()))

@@ -31,6 +31,7 @@ use fogline_rco::{
     Surroundings, TrafficEnv, TrafficObject, View,
 };
 use fogline_types::clip::{CameraCalib, CameraId, CameraInput, EgoPose};
+use fogline_types::planner::Planner;
 use serde::{Deserialize, Serialize};
 
 use crate::SimError;
@@ -305,6 +306,10 @@ pub struct RouteRecord {
     pub unstick: u32,
     /// Planner calls.
     pub plans: u64,
+    /// Planner calls that failed (the agent braked on them): a planner under test that
+    /// timed out, could not be reached or answered with an error.
+    #[serde(default)]
+    pub plan_errors: u64,
     /// Crossing events fired.
     pub crossing_events: usize,
     /// Every 0.5 s of game time: `[game s, route completion %, LLM calls, latency ms]`.
@@ -398,6 +403,20 @@ pub fn run_route(
     params: &RunParams,
     seed: u64,
 ) -> Result<RouteRecord, SimError> {
+    run_route_with(town, case, config, params, seed, None)
+}
+
+/// [`run_route`] with a planner under test in the driver's seat instead of the baseline's
+/// rules (`None`: the baseline; see [`Baseline::driven_by`]). Its requests carry the scene
+/// id `sim-<seed>-route-<id>` and the run's seed.
+pub fn run_route_with(
+    town: &Town,
+    case: &RouteCase,
+    config: &Config,
+    params: &RunParams,
+    seed: u64,
+    driver: Option<&Arc<dyn Planner>>,
+) -> Result<RouteRecord, SimError> {
     params.sensors.validate()?;
     params.bicycle.validate()?;
     let wall = Instant::now();
@@ -434,7 +453,15 @@ pub fn run_route(
     let right = CameraCalib::standard(CameraId::CrossRight, sw, sh);
     let agent_every = (TICK_HZ / s.agent_hz).round() as u64;
     let speed_scale = (1.0 / s.agent_hz) / 0.1;
-    let mut agent = Baseline::new(params.agent);
+    let mut agent = match driver {
+        Some(planner) => Baseline::driven_by(
+            params.agent,
+            Arc::clone(planner),
+            format!("sim-{seed}-route-{}", case.id),
+            run_seed,
+        ),
+        None => Baseline::new(params.agent),
+    };
     let mut wide_frames: VecDeque<Frame> = VecDeque::new();
     let mut tele_frames: VecDeque<Frame> = VecDeque::new();
     let mut history: VecDeque<VehicleState> = VecDeque::new();
@@ -912,6 +939,7 @@ pub fn run_route(
         rco: rco_stats,
         unstick: agent.unstick_count,
         plans: agent.plans,
+        plan_errors: agent.plan_errors,
         crossing_events: traffic.events_fired(),
         timeline,
         wall_s: wall.elapsed().as_secs_f64(),

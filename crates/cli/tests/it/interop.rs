@@ -376,3 +376,138 @@ fn fogline_campaign_drives_the_carla_driver_interface_server() {
     let pairs = std::fs::read_to_string(out.join("pairs.csv")).unwrap();
     assert_eq!(pairs.lines().count(), 9, "{pairs}");
 }
+
+/// A stand-in for a driving model that launches from rest: the reference planner's
+/// decision, with a speed profile that speeds up (4 m/s², to 30 m/s, in the planner's own
+/// time) whenever it decides to go on. The reference planner itself holds its speed — a
+/// clip predictor — so from rest it stands.
+struct Launcher(fogline_planner::ReferencePlanner);
+
+impl Planner for Launcher {
+    fn describe(&self) -> String {
+        "launcher".into()
+    }
+
+    fn plan(
+        &self,
+        request: &PlanRequest<'_>,
+    ) -> Result<fogline_types::clip::PlannerOutput, fogline_types::planner::PlanFailure> {
+        use fogline_types::clip::Decision;
+        let mut out = Planner::plan(&self.0, request)?;
+        let go = matches!(
+            out.decision,
+            Some(Decision::KeepLane | Decision::ProceedOnGreen | Decision::TurnRight)
+        );
+        if go {
+            let mut v = request
+                .input
+                .ego_history
+                .last()
+                .map_or(0.0, |p| p.speed_mps);
+            let mut x = 0.0;
+            for q in &mut out.trajectory.xy {
+                v = (v + 4.0 * DT_S).min(30.0);
+                x += v * DT_S;
+                *q = [x, 0.0];
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A closed-loop record without what the wall clock measures.
+fn comparable(mut v: serde_json::Value) -> serde_json::Value {
+    let o = v.as_object_mut().unwrap();
+    for wall in ["wall_s", "wall_parts_s", "system_time_s", "timeline"] {
+        o.remove(wall);
+    }
+    v
+}
+
+/// `fogline sim run --planner`: a planner behind an endpoint drives the closed loop exactly
+/// as the same planner does in process (frames travel as PNG, numbers as JSON written to
+/// round-trip), through the library and through the CLI, over either protocol.
+#[test]
+fn fogline_sim_run_is_driven_by_a_planner_behind_an_endpoint() {
+    use fogline_sim::experiment::{ExperimentParams, run_experiment_with};
+    use std::sync::Arc;
+    let params = ExperimentParams {
+        suite: fogline_sim::suite::SuiteParams::quick(),
+        seeds: vec![0],
+        configs: vec![fogline_sim::config::Config::no_deficit()],
+        run: fogline_sim::run::RunParams::default(),
+        system_time_limit_s: 1800.0,
+        llm_latency_ms: Some(1000.0),
+        routes: Some(vec![0]),
+    };
+    let launcher = || Arc::new(Launcher(fogline_planner::ReferencePlanner::new()));
+    let drive = |p: Arc<dyn Planner>| {
+        let r = run_experiment_with(&params, Some(p), 1, &|_, _| {}).unwrap();
+        comparable(serde_json::to_value(&r.records[0]).unwrap())
+    };
+    let local = drive(launcher());
+    assert_eq!(local["plan_errors"], 0, "{local}");
+    assert!(
+        local["score"]["route_completion"].as_f64().unwrap() > 50.0,
+        "{local}"
+    );
+    let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+    let http = fogline_remote::http::serve(loopback, launcher(), Default::default()).unwrap();
+    let url = format!("http://{}", http.local_addr());
+    assert_eq!(
+        drive(fogline_api::sim::planner_at(&url, 60.0).unwrap()),
+        local
+    );
+    // The CLI, as a user runs it.
+    let dir = tempfile::tempdir().unwrap();
+    let cli = |planner: &str, name: &str| {
+        let out = dir.path().join(name);
+        let args = [
+            "sim",
+            "run",
+            "--quick",
+            "--deficits",
+            "none",
+            "--routes",
+            "0",
+        ];
+        let o = super::fogline(
+            &[
+                &args[..],
+                &["--planner", planner, "--out", out.to_str().unwrap()],
+            ]
+            .concat(),
+        );
+        (o, out)
+    };
+    let (o, out) = cli(&url, "http");
+    assert!(o.status.success(), "{}", super::text(&o));
+    let records = std::fs::read_to_string(out.join("records.jsonl")).unwrap();
+    assert_eq!(
+        comparable(serde_json::from_str(records.trim()).unwrap()),
+        local
+    );
+    let tables = std::fs::read_to_string(out.join("tables.md")).unwrap();
+    assert!(tables.contains("driven by http planner at"), "{tables}");
+    let grpc = fogline_remote::egodriver::serve(loopback, launcher(), Default::default()).unwrap();
+    let (o, out) = cli(&format!("egodriver://{}", grpc.local_addr()), "egodriver");
+    assert!(o.status.success(), "{}", super::text(&o));
+    let records = std::fs::read_to_string(out.join("records.jsonl")).unwrap();
+    let remote: serde_json::Value = serde_json::from_str(records.trim()).unwrap();
+    assert_eq!(remote["plan_errors"], 0, "{remote}");
+    assert!(
+        remote["score"]["route_completion"].as_f64().unwrap() > 50.0,
+        "{remote}"
+    );
+    // A planner nobody serves: every call fails, the car brakes, the summary says so.
+    let (o, _) = cli(&format!("http://127.0.0.1:{}", free_port()), "nobody");
+    let t = super::text(&o);
+    assert!(
+        o.status.success() && t.contains("planner calls failed"),
+        "{t}"
+    );
+    // A malformed spec fails at start-up naming the flag.
+    let (o, _) = cli("ftp://x", "bad");
+    assert_eq!(o.status.code(), Some(2), "{}", super::text(&o));
+    assert!(super::text(&o).contains("--planner"), "{}", super::text(&o));
+}

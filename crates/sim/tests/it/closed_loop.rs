@@ -1,11 +1,15 @@
 //! The closed loop: deficits change the red-light behaviour, runs are deterministic and
 //! independent of the thread count, outputs are written.
 
+use std::sync::Arc;
+
 use fogline_sim::config::Config;
-use fogline_sim::experiment::run_experiment;
+use fogline_sim::experiment::{run_experiment, run_experiment_with};
 use fogline_sim::output::write_all;
-use fogline_sim::run::RouteRecord;
+use fogline_sim::run::{RouteRecord, Termination};
 use fogline_sim::sense::DeficitKind;
+use fogline_types::clip::{HORIZON, PlannerOutput, Trajectory};
+use fogline_types::planner::{FailureKind, PlanFailure, PlanRequest, Planner};
 
 use super::{experiment, tiny_suite, tl_rco};
 
@@ -242,4 +246,59 @@ fn the_override_can_only_make_the_agent_more_cautious() {
         supervise(c(0.5, 0.0, 0.0), c(0.7, 0.0, 0.0)),
         c(0.5, 0.0, 0.0)
     );
+}
+
+/// A planner that always plans to stand still.
+struct Frozen;
+
+impl Planner for Frozen {
+    fn describe(&self) -> String {
+        "frozen".into()
+    }
+    fn plan(&self, _: &PlanRequest<'_>) -> Result<PlannerOutput, PlanFailure> {
+        Ok(PlannerOutput {
+            trajectory: Trajectory {
+                xy: vec![[0.0, 0.0]; HORIZON],
+            },
+            explanation: "Stand still.".into(),
+            decision: None,
+        })
+    }
+}
+
+/// A planner that cannot be reached.
+struct Down;
+
+impl Planner for Down {
+    fn describe(&self) -> String {
+        "down".into()
+    }
+    fn plan(&self, _: &PlanRequest<'_>) -> Result<PlannerOutput, PlanFailure> {
+        Err(PlanFailure::new(
+            FailureKind::Unavailable,
+            "connection refused",
+        ))
+    }
+}
+
+#[test]
+fn a_planner_under_test_drives_the_car() {
+    let params = experiment(tiny_suite(1, 140.0), vec![Config::no_deficit()], 11);
+    let run = |p: Arc<dyn Planner>| run_experiment_with(&params, Some(p), 1, &|_, _| {}).unwrap();
+    // A planner that plans to stand keeps the car standing, whatever the baseline would do.
+    let frozen = run(Arc::new(Frozen));
+    let r = &frozen.records[0];
+    assert!(r.odometer_m < 0.5 && r.plan_errors == 0, "{r:?}");
+    assert_ne!(r.termination, Termination::Completed);
+    // A planner that fails: the car brakes on every failed call, and the record counts them.
+    let down = run(Arc::new(Down));
+    let r = &down.records[0];
+    assert!(r.plans > 0 && r.plan_errors == r.plans, "{r:?}");
+    assert!(r.odometer_m < 0.5, "{r:?}");
+    assert_eq!(down.driver, "down");
+    assert!(fogline_sim::output::markdown(&down).contains("driven by down"));
+    // The baseline drives the same route itself.
+    let own = run_experiment(&params, 1, &|_, _| {}).unwrap();
+    assert!(own.records[0].score.route_completion > 50.0);
+    assert_eq!(own.driver, "the baseline's rules on the reference planner");
 }
