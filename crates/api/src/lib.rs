@@ -8,15 +8,44 @@
 //! - [`planner_eval`]: the reference planner on generated clips, clean and perturbed
 //!   (`fogline planner eval`);
 //! - [`sim`]: the closed-loop evaluation's run, files and summary (`fogline sim run`);
-//! - [`world`]: a corpus of clips on disk (`fogline world generate`).
+//! - [`world`]: a corpus of clips on disk (`fogline world generate`);
+//! - [`in_memory`]: the in-memory API (arrays and tables in, results out) the Python package
+//!   calls, available without the file-based jobs' `jobs` feature (on by default).
 //!
 //! The benchmark engines are in `fogline-bench`; the analyses, the world, the planner, the
 //! campaign runner, the closed loop and the report in their own crates, which this one sits
 //! on.
 
+#[cfg(feature = "jobs")]
 pub mod demo;
+#[cfg(feature = "jobs")]
 pub mod envelope;
+#[cfg(feature = "jobs")]
 pub mod perturb_dir;
+#[cfg(feature = "jobs")]
 pub mod planner_eval;
+#[cfg(feature = "jobs")]
 pub mod sim;
+#[cfg(feature = "jobs")]
 pub mod world;
+
+/// The in-memory API, for front-ends that hand over arrays and tables instead of files
+/// (the Python package): the library crates that do the work, re-exported so that a
+/// front-end depends on this facade alone. Available without the `jobs` feature, which the
+/// file-based jobs above need (and with it their SQLite, Parquet and simulator).
+///
+/// - [`in_memory::perturb`]: conditions by name (`"noise_30+fog_03"`), prepared once and applied
+///   to borrowed frames, deficit masks from boxes;
+/// - [`in_memory::envelope`]: the envelope analysis of a pairs table, also from Arrow record
+///   batches (`read_pairs_arrow`), and its Markdown;
+/// - [`in_memory::world`] and [`in_memory::planner`]: a generated clip's frames; the reference planner;
+/// - [`in_memory::rco`]: the risk-averse control override and its backends;
+/// - [`in_memory::types`]: the vocabulary they share (cameras, clips, trajectories, decisions).
+pub mod in_memory {
+    pub use fogline_envelope as envelope;
+    pub use fogline_perturb as perturb;
+    pub use fogline_planner as planner;
+    pub use fogline_rco as rco;
+    pub use fogline_types as types;
+    pub use fogline_world as world;
+}

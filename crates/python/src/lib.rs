@@ -1,8 +1,10 @@
 //! The Python package `fogline` (built by maturin, `pip install ./crates/python`): thin PyO3
-//! bindings over fogline's library crates.
+//! bindings over the in-memory API of fogline's facade (`fogline_api::in_memory`, built
+//! without the file-based jobs).
 //!
 //! This crate only converts Python arguments, releases the GIL and calls the library; the
-//! work itself lives in the library crates (`fogline_perturb` for the corruptions). Every
+//! work itself lives in the library crates behind the facade (`api::perturb` for the
+//! corruptions). Every
 //! error becomes a Python exception that names the argument at fault (`TypeError` for a
 //! wrong type or dtype, `ValueError` for a wrong shape, layout or value); no panic crosses
 //! the boundary (PyO3 turns one into `PanicException`, and none is expected).
@@ -10,12 +12,13 @@
 //! The Python-side API (docstrings, type stubs, the transform classes) is in
 //! `python/fogline/`; the user guide is `docs/python.md`.
 
-use fogline_perturb::deficit::DeficitRegion;
-use fogline_perturb::rng::name_id;
-use fogline_perturb::{
+use api::perturb::deficit::DeficitRegion;
+use api::perturb::rng::name_id;
+use api::perturb::{
     DepthMap, FrameInput, FrameKey, FrameMut, FrameRef, FrameSource, ObjectBox, Perturbation,
     Prepared,
 };
+use fogline_api::in_memory as api;
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -217,7 +220,7 @@ fn run_jobs(
     dst: &mut [u8],
     (w, h): (u32, u32),
     threads: usize,
-) -> Result<Vec<Vec<DeficitRegion>>, (usize, fogline_perturb::PerturbError)> {
+) -> Result<Vec<Vec<DeficitRegion>>, (usize, api::perturb::PerturbError)> {
     let len = w as usize * h as usize * 3;
     let one = |(i, (job, out)): (usize, (&Job, &mut [u8]))| {
         let mut out = FrameMut::new(w, h, out).map_err(|e| (i, e))?;
@@ -505,8 +508,8 @@ fn envelope_analyze(
     allow_incomplete: bool,
     name: &str,
 ) -> PyResult<(String, String)> {
-    use fogline_envelope::TaxonomyChoice;
-    let mut p: fogline_envelope::EnvelopeParams =
+    use api::envelope::TaxonomyChoice;
+    let mut p: api::envelope::EnvelopeParams =
         serde_json::from_str(params).map_err(|e| value_error("parameters", e))?;
     // As the CLI's --taxonomy: the paper's classes when the data has any of them, exactly
     // the paper's, or the labels found in the data.
@@ -515,34 +518,34 @@ fn envelope_analyze(
         .map_err(|e| value_error("taxonomy", e))?;
     p.validate().map_err(|e| value_error("parameters", e))?;
     let (schema, batches) = arrow_batches(table)?;
-    let opts = fogline_envelope::ReadOptions {
+    let opts = api::envelope::ReadOptions {
         allow_incomplete,
-        ..fogline_envelope::ReadOptions::default()
+        ..api::envelope::ReadOptions::default()
     };
     py.detach(|| {
-        let t = fogline_envelope::read_pairs_arrow(
+        let t = api::envelope::read_pairs_arrow(
             name,
             &schema,
             batches.into_iter().map(Ok::<_, std::convert::Infallible>),
             &opts,
         )?;
         p.take_labels_from(&t);
-        let env = fogline_envelope::analyze(&t, &p)?;
+        let env = api::envelope::analyze(&t, &p)?;
         let json = serde_json::to_string_pretty(&env).map_err(|e| {
-            fogline_envelope::EnvelopeError::InvalidParam {
+            api::envelope::EnvelopeError::InvalidParam {
                 name: "envelope",
                 reason: e.to_string(),
             }
         })?;
-        Ok((json, fogline_envelope::markdown::render(&env)))
+        Ok((json, api::envelope::markdown::render(&env)))
     })
-    .map_err(|e: fogline_envelope::EnvelopeError| PyValueError::new_err(e.to_string()))
+    .map_err(|e: api::envelope::EnvelopeError| PyValueError::new_err(e.to_string()))
 }
 
 /// The analysis parameters' defaults, as JSON (the field names `envelope_analyze` takes).
 #[pyfunction]
 fn envelope_defaults() -> PyResult<String> {
-    serde_json::to_string(&fogline_envelope::EnvelopeParams::default())
+    serde_json::to_string(&api::envelope::EnvelopeParams::default())
         .map_err(|e| value_error("parameters", e))
 }
 
@@ -551,12 +554,12 @@ fn envelope_defaults() -> PyResult<String> {
 #[pyfunction]
 #[pyo3(signature = (path, clips, *, seed=0))]
 fn envelope_synthetic_csv(path: std::path::PathBuf, clips: usize, seed: u64) -> PyResult<()> {
-    let p = fogline_envelope::synthetic::SyntheticParams {
+    let p = api::envelope::synthetic::SyntheticParams {
         n_clips: clips,
         seed,
     };
     let mut w = std::io::BufWriter::new(std::fs::File::create(&path)?);
-    fogline_envelope::synthetic::write_csv(&p, &mut w)?;
+    api::envelope::synthetic::write_csv(&p, &mut w)?;
     std::io::Write::flush(&mut w)?;
     Ok(())
 }
@@ -566,11 +569,11 @@ fn envelope_synthetic_csv(path: std::path::PathBuf, clips: usize, seed: u64) -> 
 #[pyclass(module = "fogline._fogline")]
 struct RcoController {
     /// Behind a mutex: a Python object may be touched from several threads.
-    rco: std::sync::Mutex<fogline_rco::Rco>,
+    rco: std::sync::Mutex<api::rco::Rco>,
 }
 
 impl RcoController {
-    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, fogline_rco::Rco>> {
+    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, api::rco::Rco>> {
         self.rco
             .lock()
             .map_err(|_| PyValueError::new_err("the controller failed in another thread"))
@@ -584,15 +587,15 @@ impl RcoController {
     #[new]
     #[pyo3(signature = (params, backend="rules", openai="{}"))]
     fn new(params: &str, backend: &str, openai: &str) -> PyResult<Self> {
-        let params: fogline_rco::RcoParams =
+        let params: api::rco::RcoParams =
             serde_json::from_str(params).map_err(|e| value_error("parameters", e))?;
-        let backend: Box<dyn fogline_rco::Backend> = match backend {
-            "rules" => Box::new(fogline_rco::RulesBackend::default()),
+        let backend: Box<dyn api::rco::Backend> = match backend {
+            "rules" => Box::new(api::rco::RulesBackend::default()),
             "openai" => {
-                let p: fogline_rco::OpenAiParams =
+                let p: api::rco::OpenAiParams =
                     serde_json::from_str(openai).map_err(|e| value_error("openai", e))?;
                 Box::new(
-                    fogline_rco::OpenAiBackend::new(p)
+                    api::rco::OpenAiBackend::new(p)
                         .map_err(|e| value_error("backend \"openai\"", e))?,
                 )
             }
@@ -603,8 +606,7 @@ impl RcoController {
                 ));
             }
         };
-        let rco =
-            fogline_rco::Rco::new(params, backend).map_err(|e| value_error("parameters", e))?;
+        let rco = api::rco::Rco::new(params, backend).map_err(|e| value_error("parameters", e))?;
         Ok(Self {
             rco: std::sync::Mutex::new(rco),
         })
@@ -620,7 +622,7 @@ impl RcoController {
         observation: &str,
         frames: &Bound<'_, PyDict>,
     ) -> PyResult<(String, String)> {
-        let mut obs: fogline_rco::Observation =
+        let mut obs: api::rco::Observation =
             serde_json::from_str(observation).map_err(|e| value_error("observation", e))?;
         for (camera, frame) in frames.iter() {
             let name: String = camera
@@ -635,7 +637,7 @@ impl RcoController {
                     format!("expected shape (H, W, 3), got {shape:?}"),
                 ));
             };
-            let camera: fogline_types::clip::CameraId = serde_json::from_value(
+            let camera: api::types::clip::CameraId = serde_json::from_value(
                 serde_json::Value::String(name.clone()),
             )
             .map_err(|_| {
@@ -714,7 +716,7 @@ fn mask_boxes(mask: &Bound<'_, PyAny>) -> PyResult<Vec<(f64, f64, f64, f64)>> {
             "the array is not C-contiguous: pass np.ascontiguousarray(mask)",
         )
     })?;
-    let boxes = fogline_rco::PixelBox::from_mask(bytes, w, h)
+    let boxes = api::rco::PixelBox::from_mask(bytes, w, h)
         .ok_or_else(|| value_error(what, "its size does not match its shape"))?;
     Ok(boxes
         .iter()
@@ -723,7 +725,7 @@ fn mask_boxes(mask: &Bound<'_, PyAny>) -> PyResult<Vec<(f64, f64, f64, f64)>> {
 }
 
 /// A camera from its snake-case name.
-fn camera_of(name: &str, what: &str) -> PyResult<fogline_types::clip::CameraId> {
+fn camera_of(name: &str, what: &str) -> PyResult<api::types::clip::CameraId> {
     serde_json::from_value(serde_json::Value::String(name.to_string())).map_err(|_| {
         value_error(
             what,
@@ -732,7 +734,7 @@ fn camera_of(name: &str, what: &str) -> PyResult<fogline_types::clip::CameraId> 
     })
 }
 
-fn camera_name(id: fogline_types::clip::CameraId) -> String {
+fn camera_name(id: api::types::clip::CameraId) -> String {
     serde_json::to_value(id)
         .ok()
         .and_then(|v| v.as_str().map(String::from))
@@ -759,7 +761,7 @@ fn world_clip<'py>(
     depth: bool,
     cameras: Option<Vec<String>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use fogline_world::{ScenarioMix, WorldConfig};
+    use api::world::{ScenarioMix, WorldConfig};
     if clips == 0 {
         return Err(value_error("clips", "must be at least 1"));
     }
@@ -788,14 +790,14 @@ fn world_clip<'py>(
         mix,
     };
     let cams = match &cameras {
-        None => fogline_types::clip::CameraId::ALL.to_vec(),
+        None => api::types::clip::CameraId::ALL.to_vec(),
         Some(names) => names
             .iter()
             .map(|n| camera_of(n, "cameras"))
             .collect::<PyResult<_>>()?,
     };
     let clip = py
-        .detach(|| fogline_world::generate_clip_cameras(&config, index, &cams))
+        .detach(|| api::world::generate_clip_cameras(&config, index, &cams))
         .map_err(|e| value_error("world", e))?;
 
     let out = PyDict::new(py);
@@ -876,7 +878,7 @@ fn world_clip<'py>(
 /// The world's scenario labels, in its order.
 #[pyfunction]
 fn world_scenarios() -> Vec<&'static str> {
-    fogline_world::config::SCENARIOS.to_vec()
+    api::world::config::SCENARIOS.to_vec()
 }
 
 /// Runs the reference planner on frames: `cameras` maps camera names to `T × H × W × 3`
@@ -891,7 +893,7 @@ fn planner_plan(
     ego_history: &Bound<'_, PyAny>,
     calibs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<String> {
-    use fogline_types::clip::{CameraCalib, CameraInput, EgoPose, PlannerInput};
+    use api::types::clip::{CameraCalib, CameraInput, EgoPose, PlannerInput};
     let hist = array_of::<f64>(ego_history, "ego_history", "float64")?;
     let shape = hist.shape().to_vec();
     let [n, 5] = shape[..] else {
@@ -987,7 +989,7 @@ fn planner_plan(
         cameras: inputs,
         ego_history: &poses,
     };
-    let planner = fogline_planner::ReferencePlanner::new();
+    let planner = api::planner::ReferencePlanner::new();
     let out = py
         .detach(|| planner.plan(&input))
         .map_err(|e| value_error("cameras", e))?;
