@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use fogline_campaign::export::{ExportSummary, Formats};
+use fogline_campaign::export::{ExportSummary, Formats, ParquetCodec};
 use fogline_campaign::{CampaignConfig, RunSummary, Shard};
 use fogline_envelope::{Envelope, EnvelopeParams, PairTable, ReadOptions};
 use fogline_io::{FileSet, write_atomic};
@@ -156,6 +156,7 @@ fn make(job: &DemoJob, dir: &Path) -> Result<Made> {
         Formats {
             csv: true,
             parquet: true,
+            codec: ParquetCodec::default(),
         },
         false,
     )?;

@@ -84,6 +84,7 @@ pub fn run(a: &CampaignBench, out: &mut dyn Write) -> Result<()> {
             fogline_campaign::export::Formats {
                 csv: true,
                 parquet: true,
+                codec: fogline_campaign::export::ParquetCodec::default(),
             },
             false,
         )?;

@@ -97,11 +97,11 @@ impl Table {
         RecordBatch::try_new(Arc::new(Schema::new(fields)), arrays).map_err(|e| e.to_string())
     }
 
-    /// The table as a Parquet file (Snappy-compressed).
-    pub fn write_parquet(&self, w: impl Write + Send) -> Result<(), String> {
+    /// The table as a Parquet file compressed with `codec`.
+    pub fn write_parquet(&self, w: impl Write + Send, codec: ParquetCodec) -> Result<(), String> {
         let batch = self.to_arrow()?;
         let props = parquet::file::properties::WriterProperties::builder()
-            .set_compression(parquet::basic::Compression::SNAPPY)
+            .set_compression(codec.compression())
             .set_created_by(format!("fogline {}", env!("CARGO_PKG_VERSION")))
             .build();
         let mut writer = parquet::arrow::ArrowWriter::try_new(w, batch.schema(), Some(props))
@@ -307,6 +307,76 @@ pub fn pairs_table(runs: &[RunRecord], seed: u64) -> (Table, PairCounts) {
     (table, counts)
 }
 
+/// The compression of the Parquet files written: every codec the readers of fogline's
+/// users write (pyarrow and pandas default to Snappy, polars to zstd). Reading accepts all
+/// of them whatever this is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ParquetCodec {
+    /// zstd at level 3 (the default, as polars writes).
+    #[default]
+    Zstd,
+    /// Snappy.
+    Snappy,
+    /// gzip at level 6.
+    Gzip,
+    /// LZ4 (the raw block format of current Parquet writers).
+    Lz4,
+    /// Brotli at level 1.
+    Brotli,
+    /// Uncompressed.
+    None,
+}
+
+impl ParquetCodec {
+    /// Every codec, in the order their names are listed.
+    pub const ALL: [ParquetCodec; 6] = [
+        ParquetCodec::Zstd,
+        ParquetCodec::Snappy,
+        ParquetCodec::Gzip,
+        ParquetCodec::Lz4,
+        ParquetCodec::Brotli,
+        ParquetCodec::None,
+    ];
+
+    /// Its name: `zstd`, `snappy`, `gzip`, `lz4`, `brotli`, `none`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ParquetCodec::Zstd => "zstd",
+            ParquetCodec::Snappy => "snappy",
+            ParquetCodec::Gzip => "gzip",
+            ParquetCodec::Lz4 => "lz4",
+            ParquetCodec::Brotli => "brotli",
+            ParquetCodec::None => "none",
+        }
+    }
+
+    /// The writer's setting.
+    pub fn compression(self) -> parquet::basic::Compression {
+        use parquet::basic::{BrotliLevel, Compression, GzipLevel, ZstdLevel};
+        match self {
+            ParquetCodec::Zstd => Compression::ZSTD(ZstdLevel::default()),
+            ParquetCodec::Snappy => Compression::SNAPPY,
+            ParquetCodec::Gzip => Compression::GZIP(GzipLevel::default()),
+            ParquetCodec::Lz4 => Compression::LZ4_RAW,
+            ParquetCodec::Brotli => Compression::BROTLI(BrotliLevel::default()),
+            ParquetCodec::None => Compression::UNCOMPRESSED,
+        }
+    }
+}
+
+impl std::str::FromStr for ParquetCodec {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| {
+                format!("{s:?} is not a Parquet codec (expected zstd, snappy, gzip, lz4, brotli or none)")
+            })
+    }
+}
+
 /// The output formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Formats {
@@ -314,22 +384,30 @@ pub struct Formats {
     pub csv: bool,
     /// Write `.parquet`.
     pub parquet: bool,
+    /// The Parquet files' compression.
+    pub codec: ParquetCodec,
 }
 
 impl Formats {
-    /// Parses `csv`, `parquet` or `csv,parquet`.
+    /// Parses `csv`, `parquet` or `csv,parquet`; `parquet:CODEC` picks the Parquet
+    /// compression ([`ParquetCodec`]; zstd by default).
     pub fn parse(s: &str) -> Result<Self, String> {
         let mut f = Formats {
             csv: false,
             parquet: false,
+            codec: ParquetCodec::default(),
         };
         for part in s.split(',').map(str::trim) {
-            match part {
-                "csv" => f.csv = true,
-                "parquet" => f.parquet = true,
-                other => {
+            match part.split_once(':') {
+                None if part == "csv" => f.csv = true,
+                None if part == "parquet" => f.parquet = true,
+                Some(("parquet", codec)) => {
+                    f.parquet = true;
+                    f.codec = codec.parse().map_err(|e| format!("--format: {e}"))?;
+                }
+                _ => {
                     return Err(format!(
-                        "--format: {other:?} is not a format (expected csv, parquet or csv,parquet)"
+                        "--format: {part:?} is not a format (expected csv, parquet, parquet:CODEC or a comma-separated list)"
                     ));
                 }
             }
@@ -396,7 +474,7 @@ pub fn export(
         }
         if formats.parquet {
             let p = dir.join(format!("{name}.parquet"));
-            stage(&mut set, &p, |w| table.write_parquet(w))?;
+            stage(&mut set, &p, |w| table.write_parquet(w, formats.codec))?;
             summary.files.push(p);
         }
     }
@@ -472,9 +550,24 @@ mod tests {
             Formats::parse("csv,parquet").unwrap(),
             Formats {
                 csv: true,
-                parquet: true
+                parquet: true,
+                codec: ParquetCodec::Zstd,
             }
         );
+        assert_eq!(
+            Formats::parse("parquet:brotli").unwrap(),
+            Formats {
+                csv: false,
+                parquet: true,
+                codec: ParquetCodec::Brotli,
+            }
+        );
+        for c in ParquetCodec::ALL {
+            assert_eq!(c.name().parse::<ParquetCodec>(), Ok(c));
+        }
         assert!(Formats::parse("xlsx").is_err());
+        assert!(Formats::parse("csv:zstd").is_err());
+        let e = Formats::parse("parquet:lzo").unwrap_err();
+        assert!(e.contains("\"lzo\" is not a Parquet codec"), "{e}");
     }
 }

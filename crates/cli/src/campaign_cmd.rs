@@ -82,7 +82,8 @@ struct ExportArgs {
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
-    /// Formats: csv, parquet or csv,parquet.
+    /// Formats: csv, parquet or csv,parquet; `parquet:CODEC` picks the compression (zstd,
+    /// the default, snappy, gzip, lz4, brotli, none).
     #[arg(long, default_value = "csv,parquet")]
     format: String,
     /// Add `attempts` and `latency_ms` to the runs table (they vary between identical runs).

@@ -4,7 +4,7 @@ use std::path::Path;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use fogline_campaign::export::{Formats, export};
+use fogline_campaign::export::{Formats, ParquetCodec, export};
 use fogline_campaign::runner::Silent;
 use fogline_campaign::store::Outcome;
 use fogline_campaign::{
@@ -52,6 +52,7 @@ fn exported(store: &Path, dir: &Path) -> Vec<(String, Vec<u8>)> {
         Formats {
             csv: true,
             parquet: true,
+            codec: ParquetCodec::default(),
         },
         false,
     )

@@ -354,3 +354,78 @@ fn a_campaign_killed_in_its_first_100_ms_resumes_every_time() {
         "only {landed} of 30 kills landed before the run ended"
     );
 }
+
+/// Parquet in every codec: `campaign export --format parquet:CODEC` writes it (zstd by
+/// default), and `fogline envelope` reads each to the same analysis as the CSV export.
+#[test]
+fn exports_in_every_parquet_codec_read_back_as_the_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("campaign.toml");
+    write_config(&cfg, 6, "\"noise_30\", \"fog_05\"");
+    let o = fogline(&["campaign", "run", cfg.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let store = d.join("campaign.sqlite");
+    let analyse = |pairs: &Path, name: &str| -> serde_json::Value {
+        let out = d.join(name);
+        let o = fogline(&[
+            "-q",
+            "envelope",
+            pairs.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--bootstrap",
+            "50",
+        ]);
+        assert!(matches!(o.status.code(), Some(0 | 1)), "{}", text(&o));
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("envelope.json")).unwrap()).unwrap();
+        v.as_object_mut().unwrap().remove("input");
+        v
+    };
+    let export = |format: &str, name: &str| {
+        let out = d.join(name);
+        let o = fogline(&[
+            "campaign",
+            "export",
+            store.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--format",
+            format,
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        out
+    };
+    let csv = analyse(&export("csv", "csv").join("pairs.csv"), "env-csv");
+    let mut bytes = Vec::new();
+    for codec in ["", ":zstd", ":snappy", ":gzip", ":lz4", ":brotli", ":none"] {
+        let out = export(&format!("parquet{codec}"), &format!("pq{codec}"));
+        let pairs = out.join("pairs.parquet");
+        bytes.push(std::fs::read(&pairs).unwrap());
+        assert_eq!(analyse(&pairs, &format!("env{codec}")), csv, "{codec}");
+    }
+    // The default is zstd; every codec writes other bytes (pytest checks each file's codec
+    // with pyarrow).
+    assert_eq!(bytes[0], bytes[1]);
+    for i in 1..bytes.len() {
+        for j in i + 1..bytes.len() {
+            assert_ne!(bytes[i], bytes[j], "codecs {i} and {j} wrote the same file");
+        }
+    }
+    let o = fogline(&[
+        "campaign",
+        "export",
+        store.to_str().unwrap(),
+        "--out",
+        d.join("bad").to_str().unwrap(),
+        "--format",
+        "parquet:lzo",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("\"lzo\" is not a Parquet codec"),
+        "{}",
+        text(&o)
+    );
+}
