@@ -77,6 +77,11 @@ enum BenchCommand {
         after_help = "Examples:\n  fogline bench campaign                  # 1,996 clips × 9 conditions, then 200 calls per path\n  fogline bench campaign --clips 0 --calls 500"
     )]
     Campaign(crate::bench_campaign::BenchCampaignArgs),
+    /// Blind noise estimator vs scikit-image's estimate_sigma: MAE per sigma, ms/frame, ratio.
+    #[command(
+        after_help = "Examples:\n  fogline bench monitor\n  fogline bench monitor --clips 1 --json"
+    )]
+    Monitor(fogline_bench::monitor::MonitorBench),
 }
 
 #[derive(Args)]
@@ -163,5 +168,7 @@ pub fn bench(a: BenchArgs) -> Result<ExitCode> {
         }
         BenchCommand::World(w) => crate::planner_cmd::bench_world(w),
         BenchCommand::Campaign(c) => crate::bench_campaign::bench_campaign(c),
+        BenchCommand::Monitor(m) => fogline_bench::monitor::run(&m, &mut std::io::stdout().lock())
+            .map(|()| ExitCode::SUCCESS),
     }
 }
