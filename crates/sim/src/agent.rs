@@ -247,6 +247,8 @@ pub struct AgentInput<'a> {
     pub cameras: Vec<CameraInput<'a>>,
     /// The ego history in the rig frame now.
     pub history: &'a [EgoPose],
+    /// Game time of the newest frames, s.
+    pub time_s: f64,
 }
 
 impl Baseline {
@@ -386,6 +388,7 @@ impl Baseline {
         speed_scale: f64,
     ) -> Intent {
         self.plans += 1;
+        let t_s = input.time_s;
         let pin = PlannerInput {
             cameras: input.cameras,
             ego_history: input.history,
@@ -576,7 +579,7 @@ impl Baseline {
         // the frames (its contact below the wide camera's view, or on paint that reads
         // like it), and a car that no longer sees it must not drive into it.
         self.lead_memory
-            .update(perc.lead.as_ref(), odometer_m, self.plans, speed_scale);
+            .update(perc.lead.as_ref(), odometer_m, self.plans, t_s, speed_scale);
         let remembered = perc
             .lead
             .is_none()
@@ -788,6 +791,11 @@ pub fn unstick_cap(room: Option<f64>, decel: f64) -> f64 {
 
 /// A vehicle ahead slower than this is remembered when it drops out of view, m/s.
 pub const LEAD_MEMORY_MPS: f64 = 1.0;
+/// Readings of the followed vehicle's position kept for its range rate (2 s at 2.5 Hz)...
+pub const LEAD_RATE_READINGS: usize = 5;
+/// ... which is read once at least three of them span this long, s (the slope of readings
+/// scattered by ±0.5 m is then good to about ±0.5 m/s).
+pub const LEAD_RATE_SPAN_S: f64 = 0.75;
 /// For this many planning steps without seeing it again (4 s at 2.5 Hz)...
 pub const LEAD_MEMORY_PLANS: u64 = 10;
 /// ... unless it is closer than this, m: so close, a car's contact is below the wide
@@ -815,6 +823,9 @@ pub struct LeadMemory {
     /// The vehicle ahead followed over consecutive steps: the least and greatest of its
     /// positions (in distance driven), the last one, and the step it was last seen, m.
     track: Option<(f64, f64, f64, u64)>,
+    /// The followed vehicle's latest positions (in distance driven, m) with their times (s),
+    /// newest last: its range rate, independent of the planner's speed reading.
+    recent: [Option<(f64, f64)>; LEAD_RATE_READINGS],
 }
 
 impl LeadMemory {
@@ -829,6 +840,7 @@ impl LeadMemory {
         lead: Option<&LeadSeen>,
         odometer_m: f64,
         plan: u64,
+        t_s: f64,
         speed_scale: f64,
     ) {
         if let Some(l) = lead.filter(|l| l.kind == ObjectKind::Vehicle && l.gap >= UNSTICK_KEEP_M) {
@@ -837,13 +849,27 @@ impl LeadMemory {
                 Some((lo, hi, last, k))
                     if (at - last).abs() <= LEAD_SAME_M && plan.saturating_sub(k) <= 3 =>
                 {
+                    self.recent.rotate_left(1);
                     (lo.min(at), hi.max(at), at, plan)
                 }
-                _ => (at, at, at, plan),
+                _ => {
+                    self.recent = [None; LEAD_RATE_READINGS];
+                    (at, at, at, plan)
+                }
             });
+            self.recent[LEAD_RATE_READINGS - 1] = Some((at, t_s));
         }
+        // Standing by either reading: the planner's speed (from the motion of the car's
+        // face between frames) or the range rate of its tracked position, as a radar
+        // tracker's range rate backs its Doppler. Closing on a standing car, the face's
+        // registration can read it as moving with the ego (traced: seed 0 route 16, a car
+        // read at the ego's 8 m/s was forgotten and driven into once out of view).
+        let standing = |l: &LeadSeen| {
+            l.speed / speed_scale < LEAD_MEMORY_MPS
+                || self.range_rate().is_some_and(|v| v < LEAD_MEMORY_MPS)
+        };
         match lead.filter(|l| l.kind == ObjectKind::Vehicle) {
-            Some(l) if l.speed / speed_scale < LEAD_MEMORY_MPS && l.gap >= UNSTICK_KEEP_M => {
+            Some(l) if l.gap >= UNSTICK_KEEP_M && standing(l) => {
                 self.seen = Some((odometer_m + l.gap, plan));
             }
             Some(l) if l.gap >= UNSTICK_KEEP_M => self.seen = None,
@@ -861,6 +887,24 @@ impl LeadMemory {
                 }
             }
         }
+    }
+
+    /// The followed vehicle's speed from its tracked positions (least-squares slope over
+    /// the last [`LEAD_RATE_READINGS`]), m/s; `None` until at least three readings span
+    /// [`LEAD_RATE_SPAN_S`].
+    pub fn range_rate(&self) -> Option<f64> {
+        let pts: Vec<(f64, f64)> = self.recent.iter().flatten().copied().collect();
+        let (first, last) = (pts.first()?, pts.last()?);
+        if pts.len() < 3 || last.1 - first.1 < LEAD_RATE_SPAN_S {
+            return None;
+        }
+        let n = pts.len() as f64;
+        let tm = pts.iter().map(|p| p.1).sum::<f64>() / n;
+        let xm = pts.iter().map(|p| p.0).sum::<f64>() / n;
+        let (sxy, sxx) = pts.iter().fold((0.0, 0.0), |(a, b), p| {
+            (a + (p.1 - tm) * (p.0 - xm), b + (p.1 - tm) * (p.1 - tm))
+        });
+        Some(sxy / sxx)
     }
 
     /// Whether the vehicle ahead (the last one followed) was seen driving: its position
@@ -1036,38 +1080,68 @@ mod tests {
     fn a_standing_car_is_remembered_out_of_view() {
         let mut m = LeadMemory::default();
         // Seen standing 6 m ahead at odometer 100: remembered at 106.
-        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 1.0);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 0.4 * (1) as f64, 1.0);
         assert_eq!(m.gap(103.0), Some(3.0));
         // Out of view while the car closes in: still there, as a standing lead that stops
         // the car.
-        m.update(None, 103.0, 2, 1.0);
+        m.update(None, 103.0, 2, 0.4 * (2) as f64, 1.0);
         let r = m.recall(103.0).unwrap();
         assert_eq!((r.gap, r.speed, r.kind), (3.0, 0.0, ObjectKind::Vehicle));
         assert_eq!(follow_cap(Some(&r), 2.0, 8.0, 1.0), 0.0);
         // 3 m behind it (too close to see it), the car does not forget it...
-        m.update(None, 103.0, 1 + LEAD_MEMORY_PLANS + 1, 1.0);
+        m.update(
+            None,
+            103.0,
+            1 + LEAD_MEMORY_PLANS + 1,
+            0.4 * (1 + LEAD_MEMORY_PLANS + 1) as f64,
+            1.0,
+        );
         assert_eq!(m.gap(103.0), Some(3.0));
         // ... for `LEAD_BLIND_PLANS` steps (a reading 1 m away, too close to trust alone,
         // neither moves nor refreshes it), or until past where it was; and forgets it after
         // `LEAD_MEMORY_PLANS` steps unseen where it would be in view.
-        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 9, 1.0);
-        m.update(None, 103.0, 1 + LEAD_BLIND_PLANS, 1.0);
+        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 9, 0.4 * (9) as f64, 1.0);
+        m.update(
+            None,
+            103.0,
+            1 + LEAD_BLIND_PLANS,
+            0.4 * (1 + LEAD_BLIND_PLANS) as f64,
+            1.0,
+        );
         assert_eq!(m.gap(103.0), Some(3.0));
-        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 2 + LEAD_BLIND_PLANS, 1.0);
+        m.update(
+            Some(&vehicle(1.0, 0.0)),
+            103.0,
+            2 + LEAD_BLIND_PLANS,
+            0.4 * (2 + LEAD_BLIND_PLANS) as f64,
+            1.0,
+        );
         assert_eq!(m.gap(103.0), None);
-        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 1.0);
-        m.update(None, 106.5, 2, 1.0);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 0.4 * (1) as f64, 1.0);
+        m.update(None, 106.5, 2, 0.4 * (2) as f64, 1.0);
         assert_eq!(m.gap(106.5), None);
-        m.update(Some(&vehicle(8.0, 0.0)), 100.0, 30, 1.0);
-        m.update(None, 100.0, 30 + LEAD_MEMORY_PLANS, 1.0);
+        m.update(Some(&vehicle(8.0, 0.0)), 100.0, 30, 0.4 * (30) as f64, 1.0);
+        m.update(
+            None,
+            100.0,
+            30 + LEAD_MEMORY_PLANS,
+            0.4 * (30 + LEAD_MEMORY_PLANS) as f64,
+            1.0,
+        );
         assert_eq!(m.gap(100.0), Some(8.0));
-        m.update(None, 100.0, 31 + LEAD_MEMORY_PLANS, 1.0);
+        m.update(
+            None,
+            100.0,
+            31 + LEAD_MEMORY_PLANS,
+            0.4 * (31 + LEAD_MEMORY_PLANS) as f64,
+            1.0,
+        );
         assert_eq!(m.gap(100.0), None);
         // ... or once it drives off (seen moving), or a close reading alone: never stored.
-        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 1.0);
-        m.update(Some(&vehicle(9.0, 16.0)), 100.0, 2, 4.0);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 0.4 * (1) as f64, 1.0);
+        m.update(Some(&vehicle(9.0, 16.0)), 100.0, 2, 0.4 * (2) as f64, 4.0);
         assert_eq!(m.gap(100.0), None);
-        m.update(Some(&vehicle(0.3, 0.0)), 100.0, 3, 1.0);
+        m.update(Some(&vehicle(0.3, 0.0)), 100.0, 3, 0.4 * (3) as f64, 1.0);
         assert_eq!(m.gap(100.0), None);
     }
 
@@ -1089,13 +1163,61 @@ mod tests {
     }
 
     #[test]
+    fn a_car_read_as_moving_but_not_getting_away_is_standing() {
+        // Closing at 8 m/s on a car standing at 140 m whose speed reads 8 m/s (its face
+        // registered as moving with the ego), readings scattered by ±0.4 m.
+        let mut m = LeadMemory::default();
+        for k in 0..4u64 {
+            let (odo, t) = (100.0 + 3.2 * k as f64, 0.4 * k as f64);
+            let noise = if k % 2 == 0 { 0.4 } else { -0.4 };
+            m.update(
+                Some(&vehicle(40.0 + noise - 3.2 * k as f64, 8.0)),
+                odo,
+                k,
+                t,
+                1.0,
+            );
+        }
+        let v = m.range_rate().expect("three readings over 0.75 s");
+        assert!(v.abs() < 1.0, "{v}");
+        // Remembered where it stands: out of view, the car stops behind it.
+        assert!((m.gap(120.0).unwrap() - 20.0).abs() < 0.5);
+        m.update(None, 136.0, 4, 1.6, 1.0);
+        let r = m.recall(136.0).expect("remembered");
+        assert!(r.gap < 5.0 && r.speed == 0.0, "{r:?}");
+        assert_eq!(follow_cap(Some(&r), 3.0, 8.0, 1.0), 0.0);
+        // Without the range rate (the speed reading alone) it would have been forgotten as
+        // seen moving: only two readings, too few for a rate.
+        let mut f = LeadMemory::default();
+        f.update(Some(&vehicle(40.0, 0.0)), 100.0, 0, 0.0, 1.0);
+        f.update(Some(&vehicle(36.8, 8.0)), 103.2, 1, 0.4, 1.0);
+        assert_eq!(f.gap(103.2), None);
+        // A car driving away at 6 m/s, read so: its range rate agrees, it is not
+        // remembered, and its reading is kept.
+        let mut d = LeadMemory::default();
+        for k in 0..5u64 {
+            let (odo, t) = (8.0 * 0.4 * k as f64, 0.4 * k as f64);
+            d.update(Some(&vehicle(20.0 + (6.0 - 8.0) * t, 6.0)), odo, k, t, 1.0);
+        }
+        assert!((d.range_rate().unwrap() - 6.0).abs() < 1e-9);
+        assert_eq!(d.gap(10.0), None);
+        // Two readings, or three within half a second: no range rate yet.
+        let mut e = LeadMemory::default();
+        e.update(Some(&vehicle(20.0, 8.0)), 0.0, 0, 0.0, 1.0);
+        e.update(Some(&vehicle(19.0, 8.0)), 1.0, 1, 0.2, 1.0);
+        assert_eq!(e.range_rate(), None);
+        e.update(Some(&vehicle(18.0, 8.0)), 2.0, 2, 0.4, 1.0);
+        assert_eq!(e.range_rate(), None);
+    }
+
+    #[test]
     fn a_vehicle_followed_while_it_drove_counts_as_seen_driving() {
         // A car followed into a queue: its position (distance driven + gap) moves 8 m.
         let mut m = LeadMemory::default();
         for k in 0..10u64 {
             let at = 20.0 + (k.min(4) as f64) * 2.0;
             let odo = k as f64;
-            m.update(Some(&vehicle(at - odo, 0.0)), odo, k, 1.0);
+            m.update(Some(&vehicle(at - odo, 0.0)), odo, k, 0.4 * (k) as f64, 1.0);
         }
         assert!(m.seen_driving());
         // Clutter read as a car: the same place, give or take half a metre of reading
@@ -1104,11 +1226,17 @@ mod tests {
         for k in 0..30u64 {
             let odo = k as f64 * 0.3;
             let noise = if k % 2 == 0 { 0.5 } else { -0.5 };
-            c.update(Some(&vehicle(30.0 + noise - odo, 0.0)), odo, k, 1.0);
+            c.update(
+                Some(&vehicle(30.0 + noise - odo, 0.0)),
+                odo,
+                k,
+                0.4 * (k) as f64,
+                1.0,
+            );
         }
         assert!(!c.seen_driving());
         // A new reading far from the last, or after a gap of steps, starts a new track.
-        m.update(Some(&vehicle(60.0, 0.0)), 10.0, 10, 1.0);
+        m.update(Some(&vehicle(60.0, 0.0)), 10.0, 10, 0.4 * (10) as f64, 1.0);
         assert!(!m.seen_driving());
     }
 

@@ -594,6 +594,7 @@ pub fn run_route_with(
                     AgentInput {
                         cameras: cams,
                         history: &hist,
+                        time_s: t,
                     },
                     ego.speed_mps,
                     turn_cap,

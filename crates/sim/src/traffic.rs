@@ -553,17 +553,20 @@ impl Traffic {
                 .get(j)
                 .map(|rj| (rj.node, (rj.din, rj.dout), t0))
         });
-        self.step_vehicles(town, ego, ego_turn, t_s, dt);
+        let ego_approach = ego_approach(route, ego);
+        self.step_vehicles(town, ego, ego_turn, ego_approach, t_s, dt);
         self.step_walkers(town, ego, t_s, dt);
     }
 
     /// `ego_turn`: the node of the all-way stop the ego stood at, its path through it and
-    /// when it stood at the line (see [`ego_stop_turn`]).
+    /// when it stood at the line (see [`ego_stop_turn`]); `ego_approach`: the junction the
+    /// ego approaches or crosses (see [`ego_approach`]).
     fn step_vehicles(
         &mut self,
         town: &Town,
         ego: &EgoView,
         ego_turn: Option<(usize, (usize, usize), f64)>,
+        ego_approach: Option<(usize, usize, f64, f64)>,
         t_s: f64,
         dt: f64,
     ) {
@@ -656,7 +659,9 @@ impl Traffic {
                 _ => None,
             })
             .collect();
-        // Vehicles approaching each node: (node, din, distance to its stop line, speed).
+        // Vehicles approaching each node: (node, din, distance to its stop line, speed) —
+        // the ego's included, so that a car turning left at a signal yields to it as to any
+        // oncoming vehicle.
         let approaching: Vec<(usize, usize, f64, f64)> = self
             .npcs
             .iter()
@@ -672,6 +677,7 @@ impl Traffic {
                 }),
                 _ => None,
             })
+            .chain(ego_approach)
             .collect();
         let ego_pos = ego_box.c;
         for n in &mut self.npcs {
@@ -1057,6 +1063,26 @@ pub fn ego_holds(
     ahead && dist(ego_pos, node) < ZONE_M + 6.0 && path.iter().any(|&p| within(p, ego_pos, room))
 }
 
+/// The junction of its route the ego approaches or is crossing, as the vehicles' own
+/// approaches are listed for the left-turn check: (node, travel direction in, distance from
+/// its front to the stop line — negative past it —, speed). `None` beyond the route's
+/// last junction.
+pub fn ego_approach(route: &Route, ego: &EgoView) -> Option<(usize, usize, f64, f64)> {
+    let s = ego.route_s_m;
+    route
+        .junctions
+        .iter()
+        .find(|rj| s <= rj.s_exit_m)
+        .map(|rj| {
+            (
+                rj.node,
+                rj.din,
+                rj.s_stop_line_m - s - EGO_CENTRE_AHEAD_M - EGO_HALF_LENGTH_M,
+                ego.state.speed_mps,
+            )
+        })
+}
+
 /// The ego's turn at an all-way stop, updated: it takes one when it stands (below
 /// 0.1 m/s) within 6 m before the stop line of a route junction with stop signs (`t_s`
 /// then), and keeps it until its route progress passes the junction's exit, or it is no
@@ -1191,6 +1217,38 @@ mod tests {
             ego_stop_turn(turn, &route, &at(rj.s_exit_m + 1.0, 6.0), 16.0),
             None
         );
+    }
+
+    #[test]
+    fn the_ego_is_listed_as_approaching_the_next_junction_of_its_route() {
+        let town = Town::generate(crate::town::TownParams::default(), 1, 0);
+        let route = crate::route::generate(&town, 1500.0, 6.0, &mut Draw::new(5, &[1])).unwrap();
+        assert!(route.junctions.len() >= 2);
+        let (a, b) = (route.junctions[0], route.junctions[1]);
+        let at = |s: f64, v: f64| EgoView {
+            state: VehicleState {
+                speed_mps: v,
+                ..VehicleState::default()
+            },
+            route_s_m: s,
+        };
+        // 20 m before the first stop line (its front 3.7 m ahead of the reference point).
+        let (node, din, to_line, v) =
+            ego_approach(&route, &at(a.s_stop_line_m - 20.0, 7.0)).expect("an approach");
+        assert_eq!((node, din, v), (a.node, a.din, 7.0));
+        assert!((to_line - (20.0 - EGO_CENTRE_AHEAD_M - EGO_HALF_LENGTH_M)).abs() < 1e-9);
+        // Inside the junction: still that one, past its line.
+        let mid = 0.5 * (a.s_entry_m + a.s_exit_m);
+        let inside = ego_approach(&route, &at(mid, 5.0)).expect("an approach");
+        assert_eq!(inside.0, a.node);
+        assert!(inside.2 < 0.0);
+        // Out of it: the next one; past the last one: none.
+        assert_eq!(
+            ego_approach(&route, &at(a.s_exit_m + 0.5, 5.0)).map(|x| x.0),
+            Some(b.node)
+        );
+        let last = route.junctions[route.junctions.len() - 1];
+        assert_eq!(ego_approach(&route, &at(last.s_exit_m + 1.0, 5.0)), None);
     }
 
     #[test]
