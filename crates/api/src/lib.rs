@@ -1,6 +1,8 @@
 //! fogline's facade: the jobs its two front-ends run — the `fogline` CLI and the Python
 //! package — as one library API, so both only parse, dispatch and format.
 //!
+//! - [`dataset`]: DriveLM-Deficit, built from the world, and a backend scored on it
+//!   (`fogline dataset deficit`, `fogline rco eval`);
 //! - [`demo`]: the whole pipeline offline on built-in data (`fogline demo`);
 //! - [`envelope`]: an analysis's files and the HTML report (`fogline envelope`, `fogline
 //!   report`);
@@ -16,6 +18,8 @@
 //! campaign runner, the closed loop and the report in their own crates, which this one sits
 //! on.
 
+#[cfg(feature = "jobs")]
+pub mod dataset;
 #[cfg(feature = "jobs")]
 pub mod demo;
 #[cfg(feature = "jobs")]

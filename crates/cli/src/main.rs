@@ -7,6 +7,7 @@
 mod backend_args;
 mod bench_campaign;
 mod campaign_cmd;
+mod dataset_cmd;
 mod perturb_cmd;
 mod planner_cmd;
 mod rco_cmd;
@@ -68,7 +69,10 @@ enum Command {
     Planner(planner_cmd::PlannerArgs),
     /// Campaigns: clips × conditions × seeds against a planner, in a crash-safe store.
     Campaign(campaign_cmd::CampaignArgs),
-    /// The LLM-RCO controller: replay recorded observations through it, or time it.
+    /// DriveLM-Deficit: labelled deficit clips from the world, with fine-tuning exports.
+    Dataset(dataset_cmd::DatasetArgs),
+    /// The LLM-RCO controller: replay recorded observations through it, time it, or score a
+    /// backend on DriveLM-Deficit.
     #[command(
         after_help = "Examples:\n  fogline rco replay crates/rco/tests/data/observations.jsonl\n  fogline rco bench"
     )]
@@ -232,6 +236,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Planner(a) => planner_cmd::planner(a),
         Command::Serve(a) => serve_cmd::serve(a),
         Command::Campaign(a) => campaign_cmd::campaign(a),
+        Command::Dataset(a) => dataset_cmd::dataset(a),
         Command::Rco(a) => rco_cmd::rco(a),
         Command::Sim(a) => sim_cmd::sim(a),
         Command::Report(a) => report_cmd::report(a),

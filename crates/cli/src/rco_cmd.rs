@@ -36,6 +36,35 @@ enum RcoCommand {
         after_help = "Examples:\n  fogline rco bench\n  fogline rco bench --ticks 1000 --json"
     )]
     Bench(BenchArgs),
+    /// Score a backend's hazard inference on a DriveLM-Deficit directory (figure 6).
+    #[command(
+        after_help = "Examples:\n  fogline rco eval --data deficit/ --backend rules\n  fogline rco eval --data deficit/ --backend openai --url http://127.0.0.1:8000 --model Qwen/Qwen2-VL-2B-Instruct --limit 200"
+    )]
+    Eval(EvalArgs),
+}
+
+#[derive(Args)]
+struct EvalArgs {
+    /// The data set (`fogline dataset deficit --out`).
+    #[arg(long)]
+    data: PathBuf,
+    /// Who answers: rules or openai.
+    #[arg(long, value_enum, default_value = "rules")]
+    backend: BackendArg,
+    /// The split scored: train, val, test or all.
+    #[arg(long, default_value = "test")]
+    split: String,
+    /// At most this many samples.
+    #[arg(long)]
+    limit: Option<usize>,
+    /// Concurrent calls.
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
+    /// Where eval.json and eval.md go (default: DATA/eval).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    openai: OpenAiArgs,
 }
 
 #[derive(Args)]
@@ -79,6 +108,7 @@ struct BenchArgs {
 pub fn rco(a: RcoArgs) -> Result<ExitCode> {
     match a.what {
         RcoCommand::Replay(r) => replay_cmd(r),
+        RcoCommand::Eval(e) => eval_cmd(e),
         RcoCommand::Bench(b) => {
             let opts = fogline_bench::rco::RcoBench {
                 ticks: b.ticks,
@@ -89,6 +119,32 @@ pub fn rco(a: RcoArgs) -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
     }
+}
+
+fn eval_cmd(a: EvalArgs) -> Result<ExitCode> {
+    use fogline_api::dataset::{EvalBackend, EvalJob, eval};
+    let split = match a.split.as_str() {
+        "all" => None,
+        s => Some(fogline_dataset::Split::parse(s).context("--split: train, val, test or all")?),
+    };
+    let backend = match a.backend {
+        BackendArg::Rules => EvalBackend::Rules,
+        BackendArg::Openai => EvalBackend::OpenAi(a.openai.params()?),
+        _ => bail!("--backend: rco eval takes rules or openai"),
+    };
+    let params = fogline_dataset::EvalParams {
+        split,
+        limit: a.limit,
+        jobs: a.jobs,
+    };
+    let job = EvalJob {
+        data: a.data,
+        out: a.out,
+        backend,
+        params,
+    };
+    eval(&job)?.write_text(&mut std::io::stdout().lock())?;
+    Ok(ExitCode::SUCCESS)
 }
 
 fn replay_cmd(a: ReplayArgs) -> Result<ExitCode> {

@@ -88,6 +88,29 @@ pub fn encode_png(
 
 pub use image::ExtendedColorType as ColorType;
 
+/// A decoded RGB8 frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DecodedRgb {
+    /// Width, px.
+    pub width: u32,
+    /// Height, px.
+    pub height: u32,
+    /// RGB8, row-major, `width × height × 3` bytes.
+    pub rgb: Vec<u8>,
+}
+
+/// Decodes a PNG or JPEG file's bytes (the format guessed from its signature) to RGB8; an
+/// image with another colour type is converted.
+pub fn decode_rgb(bytes: &[u8]) -> Result<DecodedRgb, String> {
+    let img = image::load_from_memory(bytes).map_err(|e| format!("cannot decode: {e}"))?;
+    let rgb = img.to_rgb8();
+    Ok(DecodedRgb {
+        width: rgb.width(),
+        height: rgb.height(),
+        rgb: rgb.into_raw(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -109,5 +132,10 @@ mod tests {
         assert!(encode(&rgb, 7, 5, ImageFormat::Jpeg { quality: 0 }).is_err());
         let jpeg = encode(&rgb, 7, 5, ImageFormat::Jpeg { quality: 90 }).unwrap();
         assert_eq!(&jpeg[..2], &[0xFF, 0xD8]);
+        let png = encode(&rgb, 7, 5, ImageFormat::Png).unwrap();
+        let back = decode_rgb(&png).unwrap();
+        assert_eq!((back.width, back.height, back.rgb), (7, 5, rgb.clone()));
+        assert_eq!(decode_rgb(&jpeg).unwrap().rgb.len(), rgb.len());
+        assert!(decode_rgb(b"not an image").is_err());
     }
 }

@@ -41,6 +41,7 @@ pub mod action;
 pub mod backend;
 pub mod control;
 pub mod controller;
+pub mod deficit_eval;
 pub mod observation;
 pub mod replay;
 pub mod safety;

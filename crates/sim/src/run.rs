@@ -444,13 +444,14 @@ pub fn run_route_with(
         speed_mps: 0.0,
     };
     let s = &params.sensors;
-    let mut wide = CameraCalib::standard(CameraId::FrontWide, s.width, s.height);
-    wide.fx = f64::from(s.width) / 2.0 / (s.wide_fov_deg.to_radians() / 2.0).tan();
-    wide.fy = wide.fx;
+    let [left, wide, right] = crate::sense::rco_cameras(
+        s.width,
+        s.height,
+        s.wide_fov_deg,
+        s.side_width(),
+        s.side_height(),
+    );
     let tele = CameraCalib::standard(CameraId::FrontTele, s.tele_width(), s.tele_height());
-    let (sw, sh) = (s.side_width(), s.side_height());
-    let left = CameraCalib::standard(CameraId::CrossLeft, sw, sh);
-    let right = CameraCalib::standard(CameraId::CrossRight, sw, sh);
     let agent_every = (TICK_HZ / s.agent_hz).round() as u64;
     let speed_scale = (1.0 / s.agent_hz) / 0.1;
     let mut agent = match driver {

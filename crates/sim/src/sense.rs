@@ -402,8 +402,16 @@ impl PartsCache {
 /// head, the sign face). The world's objects are single solids; a YOLO-class detector's
 /// `traffic light` and `stop sign` boxes cover the head and the face only, so they are
 /// drawn as two solids with only the second tagged.
-fn split(mut parts: Vec<Part>, n: usize) -> (Vec<Part>, Vec<Part>) {
-    let rest = parts.split_off(n.min(parts.len()));
+fn split(parts: Vec<Part>, n: usize) -> (Vec<Part>, Vec<Part>) {
+    detector_parts(parts, n)
+}
+
+/// A traffic light's or stop sign's parts as the closed loop draws them: the untagged
+/// support (the first `support` parts: 2 for a light's pole and arm, 1 for a sign's pole) and
+/// the tagged rest (the signal head, the sign face), which is what a detector boxes and a
+/// deficit hides.
+pub fn detector_parts(mut parts: Vec<Part>, support: usize) -> (Vec<Part>, Vec<Part>) {
+    let rest = parts.split_off(support.min(parts.len()));
     (parts, rest)
 }
 
@@ -597,6 +605,29 @@ fn light_brakes(parts: &mut [Part]) {
             *emissive = true;
         }
     }
+}
+
+/// The calibrations of the views the RCO controller sees in the closed loop, in its order
+/// (cross-left, front-wide, cross-right): the front-wide camera at `width × height` with a
+/// horizontal field of view of `wide_fov_deg`, the cross cameras at `side_width ×
+/// side_height` (what `run` builds from its `SensorParams`: pass `width`, `height`,
+/// `wide_fov_deg`, `side_width()`, `side_height()`).
+pub fn rco_cameras(
+    width: u32,
+    height: u32,
+    wide_fov_deg: f64,
+    side_width: u32,
+    side_height: u32,
+) -> [CameraCalib; 3] {
+    use fogline_types::clip::CameraId;
+    let mut wide = CameraCalib::standard(CameraId::FrontWide, width, height);
+    wide.fx = f64::from(width) / 2.0 / (wide_fov_deg.to_radians() / 2.0).tan();
+    wide.fy = wide.fx;
+    [
+        CameraCalib::standard(CameraId::CrossLeft, side_width, side_height),
+        wide,
+        CameraCalib::standard(CameraId::CrossRight, side_width, side_height),
+    ]
 }
 
 /// Smallest box the modelled detector finds: this share of the image height.

@@ -20,6 +20,7 @@ pub mod effect;
 pub mod error;
 pub mod gmm;
 pub mod icc;
+pub mod proportion;
 pub mod rank;
 pub mod seed;
 pub mod special;

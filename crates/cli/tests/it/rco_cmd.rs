@@ -110,3 +110,65 @@ fn a_replay_where_every_tick_fell_back_exits_1_and_a_malformed_url_fails_at_star
         }
     }
 }
+
+#[test]
+fn dataset_deficit_then_rco_eval_run_as_documented() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("deficit");
+    let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args([
+            "-q",
+            "dataset",
+            "deficit",
+            "--samples",
+            "8",
+            "--seed",
+            "7",
+            "--out",
+        ])
+        .arg(&data)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        out.contains("8 samples in") && out.contains("samples/s"),
+        "{out}"
+    );
+    assert!(out.contains("dataset_info.json"), "{out}");
+    let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args([
+            "-q",
+            "rco",
+            "eval",
+            "--backend",
+            "rules",
+            "--split",
+            "all",
+            "--data",
+        ])
+        .arg(&data)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(out.contains("| pedestrian | 2 |"), "{out}");
+    assert!(data.join("eval/eval.json").is_file());
+    // A directory without a data set: exit 2, the file named.
+    let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
+        .args(["rco", "eval", "--data"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("manifest.json"), "{err}");
+}

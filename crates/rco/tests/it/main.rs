@@ -3,6 +3,7 @@
 #![allow(clippy::unwrap_used)]
 
 mod controller;
+mod mock_server;
 mod modules;
 mod openai;
 mod properties;
