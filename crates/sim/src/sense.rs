@@ -389,27 +389,21 @@ impl PartsCache {
                 })
                 .collect(),
             lights: [
-                split(objects::traffic_light(LightState::Red, arm), 2),
-                split(objects::traffic_light(LightState::Amber, arm), 2),
-                split(objects::traffic_light(LightState::Green, arm), 2),
+                detector_parts(objects::traffic_light(LightState::Red, arm), 2),
+                detector_parts(objects::traffic_light(LightState::Amber, arm), 2),
+                detector_parts(objects::traffic_light(LightState::Green, arm), 2),
             ],
-            sign: split(objects::stop_sign(), 1),
+            sign: detector_parts(objects::stop_sign(), 1),
         }
     }
-}
-
-/// The first `n` parts (a pole, an arm) and the rest (what a detector boxes: the signal
-/// head, the sign face). The world's objects are single solids; a YOLO-class detector's
-/// `traffic light` and `stop sign` boxes cover the head and the face only, so they are
-/// drawn as two solids with only the second tagged.
-fn split(parts: Vec<Part>, n: usize) -> (Vec<Part>, Vec<Part>) {
-    detector_parts(parts, n)
 }
 
 /// A traffic light's or stop sign's parts as the closed loop draws them: the untagged
 /// support (the first `support` parts: 2 for a light's pole and arm, 1 for a sign's pole) and
 /// the tagged rest (the signal head, the sign face), which is what a detector boxes and a
-/// deficit hides.
+/// deficit hides. The world's objects are single solids; a YOLO-class detector's `traffic
+/// light` and `stop sign` boxes cover the head and the face only, so they are drawn as two
+/// solids with only the second tagged.
 pub fn detector_parts(mut parts: Vec<Part>, support: usize) -> (Vec<Part>, Vec<Part>) {
     let rest = parts.split_off(support.min(parts.len()));
     (parts, rest)
