@@ -64,10 +64,12 @@ pub fn wilson(successes: u64, trials: u64, alpha: f64) -> Result<ProportionCi> {
     let denom = 1.0 + z2 / n;
     let centre = (p + z2 / (2.0 * n)) / denom;
     let half = z / denom * (p * (1.0 - p) / n + z2 / (4.0 * n * n)).sqrt();
+    // The interval contains p; clamping keeps rounding from putting a bound on its wrong
+    // side (at 0 successes the lower bound is exactly 0, at n successes the upper one 1).
     Ok(ProportionCi {
         estimate: p,
-        low: (centre - half).max(0.0),
-        high: (centre + half).min(1.0),
+        low: (centre - half).clamp(0.0, p),
+        high: (centre + half).clamp(p, 1.0),
     })
 }
 
@@ -88,6 +90,15 @@ mod tests {
             let ci = wilson(k, n, 0.05).unwrap();
             assert!((ci.low - lo).abs() < 1e-9, "{k}/{n}: {} vs {lo}", ci.low);
             assert!((ci.high - hi).abs() < 1e-9, "{k}/{n}: {} vs {hi}", ci.high);
+        }
+        // The bounds never cross the estimate, even by rounding.
+        for n in 1..=200 {
+            assert_eq!(wilson(0, n, 0.05).unwrap().low, 0.0, "0/{n}");
+            assert_eq!(wilson(n, n, 0.05).unwrap().high, 1.0, "{n}/{n}");
+            for k in 0..=n {
+                let ci = wilson(k, n, 0.05).unwrap();
+                assert!(ci.low <= ci.estimate && ci.estimate <= ci.high, "{k}/{n}");
+            }
         }
         assert!(wilson(0, 0, 0.05).is_err());
         assert!(wilson(3, 2, 0.05).is_err());
