@@ -199,6 +199,9 @@ pub struct ReportJob {
     pub no_pairs: bool,
     /// The page title.
     pub title: Option<String>,
+    /// A `fogline rco eval` output directory (holding `eval.json`) to add as the
+    /// DriveLM-Deficit section, with a gallery from the data set it names.
+    pub deficit: Option<PathBuf>,
 }
 
 /// Writes the report of an envelope directory; returns the file written.
@@ -212,6 +215,9 @@ pub fn report_dir(job: &ReportJob) -> Result<PathBuf> {
     }
     if let Some(dir) = &job.sim {
         input = input.with_closed_loop(read_closed_loop(dir)?)?;
+    }
+    if let Some(dir) = &job.deficit {
+        input = input.with_deficit(crate::dataset::read_section(dir, crate::dataset::GALLERY)?);
     }
     let params = ReportParams {
         title: job.title.clone(),

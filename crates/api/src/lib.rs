@@ -2,7 +2,8 @@
 //! package — as one library API, so both only parse, dispatch and format.
 //!
 //! - [`dataset`]: DriveLM-Deficit, built from the world, and a backend scored on it
-//!   (`fogline dataset deficit`, `fogline rco eval`);
+//!   (`fogline dataset deficit`, `fogline rco eval`); its own feature, `dataset` (part of
+//!   `jobs`), which the Python package turns on;
 //! - [`demo`]: the whole pipeline offline on built-in data (`fogline demo`);
 //! - [`envelope`]: an analysis's files and the HTML report (`fogline envelope`, `fogline
 //!   report`);
@@ -18,7 +19,7 @@
 //! campaign runner, the closed loop and the report in their own crates, which this one sits
 //! on.
 
-#[cfg(feature = "jobs")]
+#[cfg(feature = "dataset")]
 pub mod dataset;
 #[cfg(feature = "jobs")]
 pub mod demo;

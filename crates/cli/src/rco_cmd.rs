@@ -36,7 +36,7 @@ enum RcoCommand {
         after_help = "Examples:\n  fogline rco bench\n  fogline rco bench --ticks 1000 --json"
     )]
     Bench(BenchArgs),
-    /// Score a backend's hazard inference on a DriveLM-Deficit directory (figure 6).
+    /// Score a backend's hazard inference and planning on a DriveLM-Deficit directory (figure 6).
     #[command(
         after_help = "Examples:\n  fogline rco eval --data deficit/ --backend rules\n  fogline rco eval --data deficit/ --backend openai --url http://127.0.0.1:8000 --model Qwen/Qwen2-VL-2B-Instruct --limit 200"
     )]
@@ -60,9 +60,12 @@ struct EvalArgs {
     /// Concurrent calls.
     #[arg(long, default_value_t = 1)]
     jobs: usize,
-    /// Where eval.json and eval.md go (default: DATA/eval).
+    /// Where eval.json, eval.md and report.html go (default: DATA/eval).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Samples in report.html's gallery.
+    #[arg(long, default_value_t = fogline_api::dataset::GALLERY)]
+    gallery: usize,
     #[command(flatten)]
     openai: OpenAiArgs,
 }
@@ -142,6 +145,7 @@ fn eval_cmd(a: EvalArgs) -> Result<ExitCode> {
         out: a.out,
         backend,
         params,
+        gallery: a.gallery,
     };
     eval(&job)?.write_text(&mut std::io::stdout().lock())?;
     Ok(ExitCode::SUCCESS)

@@ -1,4 +1,4 @@
-//! `fogline report ENVELOPE_DIR [--sim SIM_DIR] --out report.html`: its arguments; the
+//! `fogline report ENVELOPE_DIR [--sim SIM_DIR] [--deficit EVAL_DIR] --out report.html`: its arguments; the
 //! report (figures as inline SVG, the paper's tables, a plain-language summary) is written by
 //! `fogline_api::envelope::report_dir`. See `docs/report.md`.
 
@@ -17,6 +17,9 @@ pub struct ReportArgs {
     /// Closed-loop results: a directory holding `closed_loop.json`.
     #[arg(long, value_name = "SIM_DIR")]
     pub sim: Option<PathBuf>,
+    /// A DriveLM-Deficit evaluation: a directory holding `eval.json` (`fogline rco eval`).
+    #[arg(long, value_name = "EVAL_DIR")]
+    pub deficit: Option<PathBuf>,
     /// The HTML file to write [default: ENVELOPE_DIR/report.html].
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -42,6 +45,7 @@ pub fn report(a: ReportArgs) -> Result<ExitCode> {
         pairs: a.pairs,
         no_pairs: a.no_pairs,
         title: a.title,
+        deficit: a.deficit,
     })?;
     writeln!(std::io::stdout().lock(), "{}", out.display())?;
     Ok(ExitCode::SUCCESS)

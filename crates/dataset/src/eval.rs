@@ -2,14 +2,21 @@
 //! through the controller's own hazard inference query
 //! (`fogline_rco::backend::prompt::hazard_query`, 15 images: three views × five frames) to
 //! a [`Backend`]; the answer is parsed and validated exactly as the controller does
-//! (`fogline_rco::backend::answer::parse_hazard`). A failed call or a rejected answer is
-//! counted as invalid (and wrong on all three tasks); it never stops the evaluation.
+//! (`fogline_rco::backend::answer::parse_hazard`). Then, as the controller does, the
+//! short-term motion planner's query for the strategy the hazard inference chose
+//! (`move_query` or `som_query`, the last frame's three views, told the hazards inferred)
+//! goes to the same backend, its answer is validated (`parse_move`, `parse_som`) and a move
+//! plan's first step is verified against the last frame (`verifier::check_states`). A
+//! failed call or a rejected answer is counted as invalid (and wrong on the tasks it
+//! answers); it never stops the evaluation.
 //!
 //! The hazard answered for the sample is the first one in the view that shows the hidden
 //! object at the last frame (the front view when it does), else the first hazard. Its
 //! object and motion are read into the label vocabulary with
 //! [`HiddenClass::classify`](fogline_rco::deficit_eval::HiddenClass::classify) and
-//! [`MotionLabel::classify`](fogline_rco::deficit_eval::MotionLabel::classify).
+//! [`MotionLabel::classify`](fogline_rco::deficit_eval::MotionLabel::classify). The plan's
+//! strategy is what the controller does with it at once
+//! ([`SampleAnswer::plan_strategy`](fogline_rco::deficit_eval::SampleAnswer::plan_strategy)).
 //!
 //! Intervals: Wilson 95 % for every accuracy and recall (`fogline_stats::proportion`), the
 //! normal approximation for the mean latency.
@@ -18,17 +25,21 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use fogline_io::{FileSet, Progress};
-use fogline_rco::Strategy;
-use fogline_rco::backend::Backend;
-use fogline_rco::backend::answer::parse_hazard;
+use fogline_rco::action::HazardInference;
+use fogline_rco::backend::answer::{parse_hazard, parse_move, parse_som};
+use fogline_rco::backend::{Backend, Task};
 use fogline_rco::deficit_eval::{
-    DeficitEval, EvalRow, HiddenClass, Latency, MotionLabel, Rate, SampleAnswer,
+    DeficitEval, EvalRow, HiddenClass, Latency, MotionLabel, PromptLatency, Rate, SampleAnswer,
 };
+use fogline_rco::verifier::{Assessment, check_states};
+use fogline_rco::{Behavior, Observation, SpeedControl, Strategy};
 use fogline_stats::proportion::wilson;
 use rayon::prelude::*;
 
 use crate::DatasetError;
-use crate::observe::{VIEWS, assessment, hazard_query, observations};
+use crate::observe::{
+    PLAN_LIMIT, VIEWS, WAIT_LIMIT, assessment, hazard_query, observations, plan_query,
+};
 use crate::sample::{Manifest, SampleRecord, Split, read_samples};
 
 /// Settings of an evaluation.
@@ -55,7 +66,8 @@ impl Default for EvalParams {
 /// Makes a backend per worker.
 pub type BackendFactory<'a> = dyn Fn() -> Result<Box<dyn Backend>, DatasetError> + Sync + 'a;
 
-/// Asks `backend` about one sample and scores the answer.
+/// Asks `backend` about one sample — hazard inference, then the planning prompt for the
+/// strategy it chose — and scores the answers.
 pub fn score_sample(
     manifest: &Manifest,
     dir: &Path,
@@ -82,17 +94,21 @@ pub fn score_sample(
         motion_ok: false,
         strategy_ok: false,
         latency_ms,
+        plan_prompt: None,
+        plan_strategy: None,
+        plan_summary: None,
+        plan_invalid: None,
+        plan_ok: false,
+        plan_latency_ms: None,
     };
     let parsed = match reply {
-        Err(e) => {
-            out.invalid = Some(format!("no answer: {e}"));
-            return Ok(out);
-        }
-        Ok(text) => parse_hazard(&text, &VIEWS),
+        Err(e) => Err(format!("no answer: {e}")),
+        Ok(text) => parse_hazard(&text, &VIEWS).map_err(|e| format!("rejected: {e}")),
     };
     let h = match parsed {
-        Err(e) => {
-            out.invalid = Some(format!("rejected: {e}"));
+        Err(why) => {
+            out.invalid = Some(why);
+            out.plan_invalid = Some("no hazard inference to plan from".into());
             return Ok(out);
         }
         Ok(h) => h,
@@ -111,8 +127,80 @@ pub fn score_sample(
     }
     out.strategy_ok = h.strategy == sample.strategy;
     out.answer_strategy = Some(h.strategy);
-    out.answer_rationale = Some(h.rationale);
+    out.answer_rationale = Some(h.rationale.clone());
+    plan_sample(&history, &a, &h, backend, &mut out);
     Ok(out)
+}
+
+/// What a plan does at once: its strategy and a summary.
+struct Planned {
+    strategy: Strategy,
+    summary: String,
+}
+
+/// The planning prompt after `h` (the controller's `make_plan`), scored into `out`.
+fn plan_sample(
+    history: &[Observation],
+    a: &Assessment,
+    h: &HazardInference,
+    backend: &mut dyn Backend,
+    out: &mut SampleAnswer,
+) {
+    let query = plan_query(history, a, h);
+    out.plan_prompt = Some(query.task.name().into());
+    let clock = Instant::now();
+    let reply = backend.answer(&query);
+    out.plan_latency_ms = Some(clock.elapsed().as_secs_f64() * 1000.0);
+    let planned = match reply {
+        Err(e) => Err(format!("no answer: {e}")),
+        Ok(text) => read_plan(&text, query.task, a),
+    };
+    match planned {
+        Err(why) => out.plan_invalid = Some(why),
+        Ok(p) => {
+            out.plan_ok = p.strategy == out.strategy;
+            out.plan_strategy = Some(p.strategy);
+            out.plan_summary = Some(p.summary);
+        }
+    }
+}
+
+/// Validates a planning answer as the controller does and reads what it does at once.
+fn read_plan(text: &str, task: Task, a: &Assessment) -> Result<Planned, String> {
+    let rejected = |e: fogline_rco::backend::answer::AnswerError| format!("rejected: {e}");
+    if task == Task::StopObserveMovePlan {
+        let som = parse_som(text, &VIEWS, WAIT_LIMIT).map_err(rejected)?;
+        return Ok(Planned {
+            strategy: Strategy::StopObserveMove,
+            summary: format!(
+                "wait {} ticks, then move when {}",
+                som.wait_steps, som.move_trigger
+            ),
+        });
+    }
+    let steps = parse_move(text, &VIEWS, PLAN_LIMIT).map_err(rejected)?;
+    let head = steps.first().ok_or("rejected: no step")?;
+    check_states(&head.condition, a)
+        .map_err(|r| format!("refused by the verifier at its first step: {r}"))?;
+    let stops = head.action.behavior == Behavior::Stop
+        || head.action.speed == SpeedControl::DecelerationToZero;
+    let actions: Vec<String> = steps
+        .iter()
+        .map(|s| format!("{}/{}", s.action.behavior.name(), s.action.speed.name()))
+        .collect();
+    Ok(Planned {
+        strategy: if stops {
+            Strategy::StopObserveMove
+        } else {
+            Strategy::Move
+        },
+        summary: format!(
+            "{} step{}: {}",
+            steps.len(),
+            if steps.len() == 1 { "" } else { "s" },
+            actions.join(", ")
+        ),
+    })
 }
 
 fn rate(hits: usize, n: usize) -> Rate {
@@ -136,26 +224,48 @@ fn rate(hits: usize, n: usize) -> Rate {
 pub fn row(group: &str, answers: &[&SampleAnswer]) -> EvalRow {
     let n = answers.len();
     let count = |f: &dyn Fn(&SampleAnswer) -> bool| answers.iter().filter(|a| f(a)).count();
-    let of = |s: Strategy| -> Vec<&&SampleAnswer> {
-        answers.iter().filter(|a| a.strategy == s).collect()
+    let recall = |s: Strategy, ok: &dyn Fn(&SampleAnswer) -> bool| {
+        let of: Vec<&&SampleAnswer> = answers.iter().filter(|a| a.strategy == s).collect();
+        rate(of.iter().filter(|a| ok(a)).count(), of.len())
     };
-    let moves = of(Strategy::Move);
-    let soms = of(Strategy::StopObserveMove);
     EvalRow {
         group: group.into(),
         samples: n as u64,
         object: rate(count(&|a| a.object_ok), n),
         motion: rate(count(&|a| a.motion_ok), n),
         strategy: rate(count(&|a| a.strategy_ok), n),
-        move_recall: rate(moves.iter().filter(|a| a.strategy_ok).count(), moves.len()),
-        som_recall: rate(soms.iter().filter(|a| a.strategy_ok).count(), soms.len()),
+        move_recall: recall(Strategy::Move, &|a| a.strategy_ok),
+        som_recall: recall(Strategy::StopObserveMove, &|a| a.strategy_ok),
         invalid: rate(count(&|a| a.invalid.is_some()), n),
+        plan_strategy: rate(count(&|a| a.plan_ok), n),
+        plan_move_recall: recall(Strategy::Move, &|a| a.plan_ok),
+        plan_som_recall: recall(Strategy::StopObserveMove, &|a| a.plan_ok),
+        plan_invalid: rate(count(&|a| a.plan_strategy.is_none()), n),
     }
 }
 
-/// Latency statistics of the calls.
+/// Latency statistics of the hazard inference calls.
 pub fn latency(answers: &[SampleAnswer]) -> Latency {
-    let mut ms: Vec<f64> = answers.iter().map(|a| a.latency_ms).collect();
+    latency_of(answers.iter().map(|a| a.latency_ms).collect())
+}
+
+/// Latency statistics of the planning calls of `prompt` (`move_plan`,
+/// `stop_observe_move_plan`).
+pub fn plan_latency(answers: &[SampleAnswer], prompt: &str) -> PromptLatency {
+    PromptLatency {
+        prompt: prompt.into(),
+        latency: latency_of(
+            answers
+                .iter()
+                .filter(|a| a.plan_prompt.as_deref() == Some(prompt))
+                .filter_map(|a| a.plan_latency_ms)
+                .collect(),
+        ),
+    }
+}
+
+/// Mean (with its 95 % normal interval), median, p95 and maximum of call times, ms.
+fn latency_of(mut ms: Vec<f64>) -> Latency {
     if ms.is_empty() {
         return Latency::default();
     }
@@ -245,6 +355,10 @@ pub fn evaluate(
             .map(|s| row(s.name(), &by(&|a| a.strategy == *s)))
             .collect(),
         latency: latency(&answers),
+        plan_latency: [Task::MovePlan, Task::StopObserveMovePlan]
+            .iter()
+            .map(|t| plan_latency(&answers, t.name()))
+            .collect(),
         elapsed_s: clock.elapsed().as_secs_f64(),
         answers,
     })
@@ -259,7 +373,9 @@ fn cell(r: &Rate) -> String {
     }
 }
 
-/// The figure-6 tables as Markdown (percentages with 95 % Wilson intervals).
+/// The figure-6 tables as Markdown (percentages with 95 % Wilson intervals): per hidden
+/// class, motion label and expert strategy, the hazard inference prompt's three tasks; then
+/// the strategy the planning prompt's answer carries out; then the latency per prompt.
 pub fn markdown(e: &DeficitEval) -> String {
     let mut s = format!(
         "# Backbone evaluation on DriveLM-Deficit (figure 6)\n\nBackend: {}. Data: `{}`, split `{}`, {} samples. Accuracy in %, [95 % Wilson interval].\n",
@@ -283,33 +399,73 @@ pub fn markdown(e: &DeficitEval) -> String {
             ));
         }
     };
+    let groups = groups(e);
+    for (title, rows) in &groups {
+        table(&mut s, &format!("Hazard inference prompt: {title}"), rows);
+    }
+    s.push_str(
+        "\n## Planning prompt: the strategy the plan carries out\n\n| group | n | strategy | move recall | stop-observe-move recall | no valid plan |\n|---|---:|---:|---:|---:|---:|\n",
+    );
+    for r in groups.iter().flat_map(|(_, rows)| rows) {
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} |\n",
+            r.group,
+            r.samples,
+            cell(&r.plan_strategy),
+            cell(&r.plan_move_recall),
+            cell(&r.plan_som_recall),
+            cell(&r.plan_invalid)
+        ));
+    }
+    s.push_str("\n## Latency per call\n\n| prompt | calls | mean ms [95 % CI] | median ms | p95 ms | max ms |\n|---|---:|---:|---:|---:|---:|\n");
+    for (prompt, l) in latencies(e) {
+        s.push_str(&format!(
+            "| {prompt} | {} | {:.2} [{:.2}, {:.2}] | {:.2} | {:.2} | {:.2} |\n",
+            l.calls, l.mean_ms, l.ci_low_ms, l.ci_high_ms, l.p50_ms, l.p95_ms, l.max_ms
+        ));
+    }
+    s.push_str(&format!("\nEvaluation wall time {:.1} s.\n", e.elapsed_s));
+    s
+}
+
+/// The row groups of the tables: per hidden class (with all samples), per motion label,
+/// per expert strategy.
+pub fn groups(e: &DeficitEval) -> Vec<(&'static str, Vec<&EvalRow>)> {
     let mut by_class: Vec<&EvalRow> = e.by_class.iter().collect();
     by_class.push(&e.overall);
-    table(
-        &mut s,
-        "Per hidden class (figure 6a: object; 6b: strategy)",
-        &by_class,
+    vec![
+        (
+            "per hidden class (figure 6a: object; 6b: strategy)",
+            by_class,
+        ),
+        ("per motion label", e.by_motion.iter().collect()),
+        ("per expert strategy", e.by_strategy.iter().collect()),
+    ]
+}
+
+/// The latency of every prompt: hazard inference, then each planning prompt.
+pub fn latencies(e: &DeficitEval) -> Vec<(&str, &Latency)> {
+    let mut out = vec![(Task::HazardInference.name(), &e.latency)];
+    out.extend(
+        e.plan_latency
+            .iter()
+            .map(|p| (p.prompt.as_str(), &p.latency)),
     );
-    table(
-        &mut s,
-        "Per motion label",
-        &e.by_motion.iter().collect::<Vec<_>>(),
-    );
-    table(
-        &mut s,
-        "Per expert strategy",
-        &e.by_strategy.iter().collect::<Vec<_>>(),
-    );
-    let l = &e.latency;
-    s.push_str(&format!(
-        "\nLatency per call: mean {:.2} ms [{:.2}, {:.2}], median {:.2} ms, p95 {:.2} ms, max {:.2} ms ({} calls); evaluation wall time {:.1} s.\n",
-        l.mean_ms, l.ci_low_ms, l.ci_high_ms, l.p50_ms, l.p95_ms, l.max_ms, l.calls, e.elapsed_s
-    ));
-    s
+    out
 }
 
 /// Writes `eval.json` and `eval.md` into `out` as one set; returns their paths.
 pub fn write_eval(e: &DeficitEval, out: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+    write_eval_with(e, out, &[])
+}
+
+/// Writes `eval.json`, `eval.md` and `extra` files (name in `out`, bytes; e.g. the HTML
+/// report) into `out` as one set (all or none of them replaced); returns their paths.
+pub fn write_eval_with(
+    e: &DeficitEval,
+    out: &Path,
+    extra: &[(&str, &[u8])],
+) -> Result<Vec<PathBuf>, DatasetError> {
     let json = out.join("eval.json");
     let md = out.join("eval.md");
     let mut set = FileSet::new();
@@ -317,8 +473,15 @@ pub fn write_eval(e: &DeficitEval, out: &Path) -> Result<Vec<PathBuf>, DatasetEr
         .map_err(|err| DatasetError::io(&json, err))?;
     set.write(&md, markdown(e).as_bytes())
         .map_err(|err| DatasetError::io(&md, err))?;
+    let mut files = vec![json, md];
+    for (name, bytes) in extra {
+        let path = out.join(name);
+        set.write(&path, bytes)
+            .map_err(|err| DatasetError::io(&path, err))?;
+        files.push(path);
+    }
     set.commit().map_err(|err| DatasetError::io(out, err))?;
-    Ok(vec![json, md])
+    Ok(files)
 }
 
 /// Reads an `eval.json` back.

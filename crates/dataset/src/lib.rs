@@ -9,13 +9,13 @@
 //!   classes hidden, with its motion), the world scene it renders to, and the privileged
 //!   expert that labels it (class, motion, `move` or `stop-observe-move`, one rationale
 //!   sentence each);
-//! - [`build`]: five frames at 1 fps on the RCO's three views at the closed loop's sizes,
+//! - [`build`](mod@build): five frames at 1 fps on the RCO's three views at the closed loop's sizes,
 //!   the hidden object masked as the closed loop masks it, seeded, on all cores, split by
 //!   town, written as one set;
 //! - [`sample`]: the on-disk format (`manifest.json`, `samples.jsonl`, `images/`);
 //! - [`export`]: LLaMA-Factory ShareGPT (per task and joint, with `dataset_info.json`),
 //!   DriveLM-style QA, the balance (figure 5b);
-//! - [`import`]: samples from a user's own logs (per-frame boxes and the expert's brake
+//! - [`import`](mod@import): samples from a user's own logs (per-frame boxes and the expert's brake
 //!   state);
 //! - [`observe`], [`eval`]: a sample as the controller sees it, and the figure-6 scoring
 //!   through the controller's own prompt, backend and validation.
@@ -40,7 +40,7 @@ pub mod scene;
 
 pub use build::{BuildParams, Built, ImageKind, build};
 pub use error::DatasetError;
-pub use eval::{EvalParams, evaluate, markdown as eval_markdown, write_eval};
+pub use eval::{EvalParams, evaluate, markdown as eval_markdown, write_eval, write_eval_with};
 pub use import::{ImportParams, import};
 pub use sample::{Manifest, SampleRecord, Split};
 

@@ -1,11 +1,14 @@
 //! A sample as the RCO controller sees it: five [`Observation`]s (its views with their
 //! deficit regions, the visible road users and the calibrations), and the controller's own
-//! hazard inference query over them (`fogline_rco::backend::prompt::hazard_query`: the same
-//! prompt, images and schema as in the closed loop).
+//! queries over them: hazard inference (`fogline_rco::backend::prompt::hazard_query`) and
+//! the short-term motion planner's (`move_query`, `som_query`) — the same prompts, images
+//! and schemas as in the closed loop.
 
 use std::path::Path;
 use std::sync::Arc;
 
+use fogline_rco::Strategy;
+use fogline_rco::action::HazardInference;
 use fogline_rco::backend::{Query, QueryContext, prompt};
 use fogline_rco::verifier::{Assessment, VerifierParams, assess};
 use fogline_rco::{
@@ -25,9 +28,11 @@ pub const VIEWS: [CameraId; 3] = [
 ];
 /// At most this many images per query (every view of every frame).
 pub const MAX_IMAGES: usize = 15;
-/// The planning limits the query mentions.
-const PLAN_LIMIT: usize = 5;
-const WAIT_LIMIT: u32 = 30;
+/// The planning limits the queries mention and the answers are validated against (the
+/// controller's defaults, `RcoParams::plan_limit` and `wait_limit`).
+pub const PLAN_LIMIT: usize = 5;
+/// The largest wait of a stop-observe-move plan, ticks.
+pub const WAIT_LIMIT: u32 = 30;
 
 /// The five observations of a sample, oldest first; with `pixels_from` (the data set
 /// directory) the frames are read and decoded, else the views carry no pixels (text only).
@@ -161,11 +166,38 @@ pub fn assessment(history: &[Observation]) -> Assessment {
 /// The controller's hazard inference query over a sample's observations (one frame per
 /// second).
 pub fn hazard_query<'a>(history: &'a [Observation], assessment: &'a Assessment) -> Query<'a> {
-    let ctx = QueryContext {
+    prompt::hazard_query(context(history, assessment, None), MAX_IMAGES)
+}
+
+/// The controller's planning query after `hazard` (equation 5): the move plan or the
+/// stop-observe-move plan, whichever strategy the hazard inference chose, over the last
+/// frame's views, told the hazards inferred. Its context is the hazard query's, with the
+/// tick the samples' frame interval (1 s): a backend that places the hazards from the
+/// history (the rules' ground geometry) needs the frames' true spacing, so the prompt's
+/// steps are 1 s here, where the closed loop's are 0.1 s.
+pub fn plan_query<'a>(
+    history: &'a [Observation],
+    assessment: &'a Assessment,
+    hazard: &'a HazardInference,
+) -> Query<'a> {
+    let ctx = context(history, assessment, Some(hazard));
+    match hazard.strategy {
+        Strategy::Move => prompt::move_query(ctx),
+        Strategy::StopObserveMove => prompt::som_query(ctx),
+    }
+}
+
+/// A query's context (one frame per second).
+fn context<'a>(
+    history: &'a [Observation],
+    assessment: &'a Assessment,
+    hazard: Option<&'a HazardInference>,
+) -> QueryContext<'a> {
+    QueryContext {
         history,
         views: &VIEWS,
         assessment,
-        hazard: None,
+        hazard,
         plan_limit: PLAN_LIMIT,
         wait_limit: WAIT_LIMIT,
         constraints: None,
@@ -173,6 +205,5 @@ pub fn hazard_query<'a>(history: &'a [Observation], assessment: &'a Assessment) 
         stopped_for: &[],
         hazard_ratio: VerifierParams::default().hazard_ratio,
         dt_s: 1.0,
-    };
-    prompt::hazard_query(ctx, MAX_IMAGES)
+    }
 }

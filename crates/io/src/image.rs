@@ -1,6 +1,7 @@
 //! Frame encoding: one PNG and JPEG encoder for every crate (the wire formats of the remote
 //! planners, the clip format's frames and depth maps, the perturbed frames the CLI writes,
-//! the images sent to a language model).
+//! the images sent to a language model), and the `data:` URL of an encoded frame (what a
+//! language model receives and what the HTML report inlines).
 
 use image::codecs::jpeg::JpegEncoder;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
@@ -27,6 +28,22 @@ impl ImageFormat {
             ImageFormat::Jpeg { .. } => "jpeg",
         }
     }
+
+    /// The media type: `image/png` or `image/jpeg`.
+    pub fn mime(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "image/png",
+            ImageFormat::Jpeg { .. } => "image/jpeg",
+        }
+    }
+}
+
+/// The `data:` URL of an encoded frame (`data:image/png;base64,…`, standard base64 with
+/// padding): how frames travel to an OpenAI-compatible model and into the HTML report.
+pub fn data_url(encoded: &[u8], format: ImageFormat) -> String {
+    use base64::Engine as _;
+    let b64 = base64::engine::general_purpose::STANDARD;
+    format!("data:{};base64,{}", format.mime(), b64.encode(encoded))
 }
 
 /// How hard the PNG encoder works.
@@ -137,5 +154,13 @@ mod tests {
         assert_eq!((back.width, back.height, back.rgb), (7, 5, rgb.clone()));
         assert_eq!(decode_rgb(&jpeg).unwrap().rgb.len(), rgb.len());
         assert!(decode_rgb(b"not an image").is_err());
+        assert_eq!(
+            data_url(b"abc", ImageFormat::Png),
+            "data:image/png;base64,YWJj"
+        );
+        assert!(
+            data_url(&jpeg, ImageFormat::Jpeg { quality: 90 })
+                .starts_with("data:image/jpeg;base64,/9j/")
+        );
     }
 }

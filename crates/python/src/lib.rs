@@ -996,6 +996,124 @@ fn planner_plan(
     serde_json::to_string(&out).map_err(|e| value_error("output", e))
 }
 
+/// A Python exception for a failed job: `OSError` when a file could not be read or written,
+/// else `ValueError`; the message is the whole error chain (it names the file and field).
+fn job_error(e: &anyhow::Error) -> PyErr {
+    let msg = format!("{e:#}");
+    if e.chain().any(|c| c.is::<std::io::Error>()) {
+        pyo3::exceptions::PyOSError::new_err(msg)
+    } else {
+        PyValueError::new_err(msg)
+    }
+}
+
+/// A built data set as JSON (`Built`) and the summary the CLI prints.
+fn built_json(b: &fogline_api::dataset::Built) -> PyResult<(String, String)> {
+    let mut text = Vec::new();
+    b.write_text(&mut text)
+        .map_err(|e| value_error("summary", e))?;
+    Ok((
+        serde_json::to_string(b).map_err(|e| value_error("summary", e))?,
+        String::from_utf8_lossy(&text).into_owned(),
+    ))
+}
+
+/// Builds DriveLM-Deficit into `out` (`fogline dataset deficit`): `params` is the JSON of
+/// `BuildParams` (missing fields: the defaults). Returns the build's summary as JSON and as
+/// the CLI's text. The GIL is released while it builds.
+#[pyfunction]
+#[pyo3(signature = (out, params))]
+fn dataset_deficit(
+    py: Python<'_>,
+    out: std::path::PathBuf,
+    params: &str,
+) -> PyResult<(String, String)> {
+    let p: fogline_api::dataset::BuildParams =
+        serde_json::from_str(params).map_err(|e| value_error("parameters", e))?;
+    let built = py
+        .detach(|| fogline_api::dataset::deficit(&p, &out))
+        .map_err(|e| job_error(&e))?;
+    built_json(&built)
+}
+
+/// Imports logs into a data set (`fogline dataset import`): `params` is the JSON of
+/// `ImportParams`. Returns the summary as JSON and text.
+#[pyfunction]
+#[pyo3(signature = (logs, out, params))]
+fn dataset_import(
+    py: Python<'_>,
+    logs: std::path::PathBuf,
+    out: std::path::PathBuf,
+    params: &str,
+) -> PyResult<(String, String)> {
+    let p: fogline_api::dataset::ImportParams =
+        serde_json::from_str(params).map_err(|e| value_error("parameters", e))?;
+    let built = py
+        .detach(|| fogline_api::dataset::import(&p, &logs, &out))
+        .map_err(|e| job_error(&e))?;
+    built_json(&built)
+}
+
+/// Scores a backend on a data set (`fogline rco eval`): `split` is `train`, `val`, `test` or
+/// `all`; `backend` `rules` or `openai` (with `openai` the JSON of `OpenAiParams`). Writes
+/// `eval.json`, `eval.md` and `report.html` into `out` (default `data/eval`) and returns
+/// the evaluation as JSON, its Markdown and the files written.
+#[pyfunction]
+#[pyo3(signature = (data, *, split, limit, jobs, backend, openai, out, gallery))]
+#[allow(clippy::too_many_arguments)]
+fn dataset_evaluate(
+    py: Python<'_>,
+    data: std::path::PathBuf,
+    split: &str,
+    limit: Option<usize>,
+    jobs: usize,
+    backend: &str,
+    openai: &str,
+    out: Option<std::path::PathBuf>,
+    gallery: usize,
+) -> PyResult<(String, String, Vec<std::path::PathBuf>)> {
+    use fogline_api::dataset::{EvalBackend, EvalJob, EvalParams, Split};
+    let split = match split {
+        "all" => None,
+        s => Some(Split::parse(s).ok_or_else(|| {
+            value_error(
+                "split",
+                format!("expected train, val, test or all, got {s:?}"),
+            )
+        })?),
+    };
+    if jobs == 0 {
+        return Err(value_error("jobs", "must be at least 1"));
+    }
+    let backend = match backend {
+        "rules" => EvalBackend::Rules,
+        "openai" => {
+            EvalBackend::OpenAi(serde_json::from_str(openai).map_err(|e| value_error("openai", e))?)
+        }
+        other => {
+            return Err(value_error(
+                "backend",
+                format!("expected \"rules\" or \"openai\", got {other:?}"),
+            ));
+        }
+    };
+    let job = EvalJob {
+        data,
+        out,
+        backend,
+        params: EvalParams { split, limit, jobs },
+        gallery,
+    };
+    let done = py
+        .detach(|| fogline_api::dataset::eval(&job))
+        .map_err(|e| job_error(&e))?;
+    Ok((
+        serde_json::to_string(&done.eval).map_err(|e| value_error("evaluation", e))?,
+        fogline_api::dataset::markdown(&done.eval),
+        done.files,
+    ))
+}
+
 /// The compiled half of the `fogline` package.
 #[pymodule]
 fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -1011,5 +1129,8 @@ fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(world_scenarios, m)?)?;
     m.add_function(wrap_pyfunction!(planner_plan, m)?)?;
     m.add_class::<RcoController>()?;
+    m.add_function(wrap_pyfunction!(dataset_deficit, m)?)?;
+    m.add_function(wrap_pyfunction!(dataset_import, m)?)?;
+    m.add_function(wrap_pyfunction!(dataset_evaluate, m)?)?;
     Ok(())
 }

@@ -1,8 +1,13 @@
-//! Scoring a backend's hazard inference on labelled deficit clips (DriveLM-Deficit, the
-//! paper's section 5 and figure 6): the label vocabulary, the reading of a free-text answer
-//! into it, and [`DeficitEval`], the one typed definition of an evaluation's result (what
-//! `fogline rco eval` writes as `eval.json` and any reader — the HTML report, a notebook —
-//! reads back).
+//! Scoring a backend's hazard inference and planning on labelled deficit clips
+//! (DriveLM-Deficit, the paper's section 5 and figure 6): the label vocabulary, the reading
+//! of a free-text answer into it, and [`DeficitEval`], the one typed definition of an
+//! evaluation's result (what `fogline rco eval` writes as `eval.json` and any reader — the
+//! HTML report, a notebook — reads back).
+//!
+//! Two prompts are scored per sample, as the controller asks them: hazard inference (object,
+//! motion and strategy in one answer) and then the short-term motion planner's prompt for
+//! the strategy it chose (`move_plan` or `stop_observe_move_plan`); the plan's strategy is
+//! what the controller would do with it at once ([`SampleAnswer::plan_strategy`]).
 //!
 //! The evaluation itself (reading samples, asking the backend, the confidence intervals)
 //! runs in `fogline-dataset`; this module holds only data and the answer reading, so that
@@ -211,6 +216,20 @@ pub struct EvalRow {
     pub som_recall: Rate,
     /// Share of invalid answers (no answer, or one the controller's validation rejects).
     pub invalid: Rate,
+    /// Accuracy of the strategy the planning prompt's answer carries out
+    /// ([`SampleAnswer::plan_strategy`]; no valid plan counts as wrong). Version 2.
+    #[serde(default)]
+    pub plan_strategy: Rate,
+    /// Recall of `move` by the plan.
+    #[serde(default)]
+    pub plan_move_recall: Rate,
+    /// Recall of `stop-observe-move` by the plan.
+    #[serde(default)]
+    pub plan_som_recall: Rate,
+    /// Share of samples without a valid plan (no hazard inference to plan from, no answer,
+    /// an answer the controller's validation rejects, or a first step its verifier refuses).
+    #[serde(default)]
+    pub plan_invalid: Rate,
 }
 
 /// Latency of the backend calls, ms.
@@ -230,6 +249,16 @@ pub struct Latency {
     pub p95_ms: f64,
     /// Largest, ms.
     pub max_ms: f64,
+}
+
+/// The latency of one prompt's calls.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PromptLatency {
+    /// The prompt (`hazard_inference`, `move_plan`, `stop_observe_move_plan`: the
+    /// controller's task names).
+    pub prompt: String,
+    /// Its calls' latency (`calls` 0: never asked).
+    pub latency: Latency,
 }
 
 /// One sample's truth and answer.
@@ -264,12 +293,37 @@ pub struct SampleAnswer {
     pub motion_ok: bool,
     /// Strategy right.
     pub strategy_ok: bool,
-    /// The call's wall time, ms.
+    /// The hazard inference call's wall time, ms.
     pub latency_ms: f64,
+    /// The planning prompt asked (`move_plan` or `stop_observe_move_plan`, the strategy the
+    /// hazard inference chose); `None` when hazard inference gave no valid answer (the
+    /// controller falls back without planning). Version 2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_prompt: Option<String>,
+    /// What the plan does at once, as the controller runs it: a stop-observe-move plan, or
+    /// a move plan whose first step (verified against the last frame) stops the car
+    /// (behaviour `stop` or speed `deceleration_to_zero`), is `stop-observe-move`; any
+    /// other move plan is `move`. `None`: no valid plan.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_strategy: Option<Strategy>,
+    /// The plan in short (`2 steps: move_forward/deceleration, …`, `wait 10 ticks, then
+    /// move when front_wide=no_immediate_hazard …`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_summary: Option<String>,
+    /// Why there is no valid plan, if there is none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_invalid: Option<String>,
+    /// The plan's strategy is the expert's.
+    #[serde(default)]
+    pub plan_ok: bool,
+    /// The planning call's wall time, ms (`None`: not asked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_latency_ms: Option<f64>,
 }
 
 /// The result of `fogline rco eval` (`eval.json`): figure 6's accuracies per class, motion
-/// label and strategy, with 95 % intervals, invalid answers, latency, every answer.
+/// label and strategy, with 95 % intervals, invalid answers, latency per prompt, every
+/// answer. Version 1 files (hazard inference only) read with the planning fields empty.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeficitEval {
     /// Always [`DeficitEval::FORMAT`].
@@ -292,8 +346,12 @@ pub struct DeficitEval {
     pub by_motion: Vec<EvalRow>,
     /// Per expert strategy (`move`, `stop-observe-move`).
     pub by_strategy: Vec<EvalRow>,
-    /// Latency of the calls.
+    /// Latency of the hazard inference calls.
     pub latency: Latency,
+    /// Latency of the planning calls, per prompt (`move_plan`, `stop_observe_move_plan`).
+    /// Version 2.
+    #[serde(default)]
+    pub plan_latency: Vec<PromptLatency>,
     /// Wall time of the whole evaluation, s.
     pub elapsed_s: f64,
     /// Every sample's answer, in sample order.
@@ -303,8 +361,8 @@ pub struct DeficitEval {
 impl DeficitEval {
     /// The `format` tag.
     pub const FORMAT: &'static str = "fogline-deficit-eval";
-    /// The schema version.
-    pub const VERSION: u32 = 1;
+    /// The schema version (2: the planning prompt's fields).
+    pub const VERSION: u32 = 2;
 }
 
 #[cfg(test)]

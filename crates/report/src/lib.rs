@@ -24,6 +24,7 @@
 
 pub mod closed_loop;
 mod ctx;
+pub mod deficit;
 mod draw;
 pub mod error;
 mod figures;
@@ -55,6 +56,10 @@ pub struct ReportInput {
     /// Closed-loop scores; without them the closed-loop section says how to get them.
     #[serde(default)]
     pub closed_loop: Option<ClosedLoop>,
+    /// The DriveLM-Deficit evaluation with its gallery (`fogline rco eval`); without it the
+    /// page has no such section. In memory only (the gallery holds pixels).
+    #[serde(skip)]
+    pub deficit: Option<deficit::DeficitSection>,
 }
 
 impl ReportInput {
@@ -64,6 +69,7 @@ impl ReportInput {
             envelope,
             changed_l2_m: None,
             closed_loop: None,
+            deficit: None,
         }
     }
 
@@ -122,6 +128,13 @@ impl ReportInput {
         self.closed_loop = Some(cl);
         Ok(self)
     }
+
+    /// Adds the DriveLM-Deficit evaluation's section (checked by
+    /// [`deficit::DeficitSection::new`]).
+    pub fn with_deficit(mut self, d: deficit::DeficitSection) -> Self {
+        self.deficit = Some(d);
+        self
+    }
 }
 
 /// Parameters of [`render`].
@@ -179,7 +192,7 @@ pub struct Report {
     pub figures: Vec<FigureInfo>,
 }
 
-const CSS: &str = include_str!("report.css");
+pub(crate) const CSS: &str = include_str!("report.css");
 
 /// Renders the page.
 pub fn render(input: &ReportInput, params: &ReportParams) -> Result<Report> {
@@ -230,6 +243,9 @@ pub fn render(input: &ReportInput, params: &ReportParams) -> Result<Report> {
     push("table-dose", tables::dose_table(&cx));
     push("parameters", tables::parameters(&cx));
     push("conventions", tables::conventions(&cx));
+    if let Some(dx) = &input.deficit {
+        push("deficit", deficit::fragment(dx)?);
+    }
     let _ = tables::has_aggregate(&cx);
 
     let frag = |id: &str| -> &str {
@@ -270,38 +286,61 @@ pub fn render(input: &ReportInput, params: &ReportParams) -> Result<Report> {
         }),
         esc(&d.generated_by)
     );
-    let sections: [(&str, &str, &[&str]); 10] = [
+    let mut sections: Vec<(&str, &str, &[&str])> = vec![
         ("summary", "Summary", &["summary", "notes"]),
         (
             "when",
-            "1. When: per-scenario thresholds",
+            "When: per-scenario thresholds",
             &["table-1", "fig-1", "table-2", "fig-4"],
         ),
         (
             "severity",
-            "2. How severely: severity bands",
+            "How severely: severity bands",
             &["table-3", "fig-2a", "fig-2b"],
         ),
         (
             "envelope",
-            "3. The two-dimensional envelope",
+            "The two-dimensional envelope",
             &["fig-3", "table-high", "table-4"],
         ),
-        ("assurance", "4. ISO 21448 assurance mapping", &["table-5"]),
-        ("statistics", "5. Statistics", &["statistics"]),
+        ("assurance", "ISO 21448 assurance mapping", &["table-5"]),
+        ("statistics", "Statistics", &["statistics"]),
         (
             "closed-loop",
-            "6. Closed loop",
+            "Closed loop",
             &["fig-5", "table-closed-loop"],
         ),
-        ("data", "7. Data behind figure 1", &["table-dose"]),
+        ("data", "Data behind figure 1", &["table-dose"]),
         (
             "run",
-            "8. The run: input, checksum, parameters",
+            "The run: input, checksum, parameters",
             &["parameters"],
         ),
-        ("conventions", "9. Conventions", &["conventions"]),
+        ("conventions", "Conventions", &["conventions"]),
     ];
+    if input.deficit.is_some() {
+        sections.insert(
+            7,
+            (
+                "deficit",
+                "Hazard inference and planning under perception deficits (DriveLM-Deficit)",
+                &["deficit"],
+            ),
+        );
+    }
+    // Every section but the summary is numbered in page order.
+    let sections: Vec<(&str, String, &[&str])> = sections
+        .into_iter()
+        .enumerate()
+        .map(|(i, (id, name, parts))| {
+            let name = if i == 0 {
+                name.to_string()
+            } else {
+                format!("{i}. {name}")
+            };
+            (id, name, parts)
+        })
+        .collect();
     h.push_str("<nav aria-label=\"Contents\"><ol>\n");
     for (id, name, _) in &sections {
         let _ = writeln!(h, "<li><a href=\"#{id}\">{}</a></li>", esc(name));

@@ -9,12 +9,12 @@ use crate::ctx::{AGG_ALL, Ctx};
 use crate::draw::{esc, fixed, level, olevel, opct, pct, pval, sval, val};
 
 /// A table builder: header cells, then rows of already-escaped cells.
-struct Table {
+pub(crate) struct Table {
     s: String,
 }
 
 impl Table {
-    fn new(id: &str, caption: &str, head: &[&str], numeric: &[bool]) -> Self {
+    pub(crate) fn new(id: &str, caption: &str, head: &[&str], numeric: &[bool]) -> Self {
         let mut s = String::new();
         let _ = writeln!(s, "<div class=\"table-wrap\"><table id=\"{id}\">");
         let _ = writeln!(s, "<caption>{caption}</caption>");
@@ -31,7 +31,7 @@ impl Table {
         Self { s }
     }
 
-    fn row(&mut self, cells: &[String], numeric: &[bool]) {
+    pub(crate) fn row(&mut self, cells: &[String], numeric: &[bool]) {
         self.s.push_str("<tr>");
         for (i, c) in cells.iter().enumerate() {
             if i == 0 {
@@ -48,7 +48,7 @@ impl Table {
         self.s.push_str("</tr>\n");
     }
 
-    fn finish(mut self, foot: &str) -> String {
+    pub(crate) fn finish(mut self, foot: &str) -> String {
         self.s.push_str("</tbody>\n</table></div>\n");
         if !foot.is_empty() {
             let _ = writeln!(self.s, "<p class=\"foot\">{foot}</p>");

@@ -61,7 +61,13 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
         ),
         (
             "fogline-report",
-            &["fogline-types", "fogline-envelope", "fogline-sim"][..],
+            &[
+                "fogline-types",
+                "fogline-io",
+                "fogline-envelope",
+                "fogline-sim",
+                "fogline-rco",
+            ][..],
         ),
         ("fogline-api", &["*"][..]),
         ("fogline-cli", &["*"][..]),

@@ -161,7 +161,17 @@ fn dataset_deficit_then_rco_eval_run_as_documented() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(out.contains("| pedestrian | 2 |"), "{out}");
+    assert!(out.contains("## Planning prompt"), "{out}");
     assert!(data.join("eval/eval.json").is_file());
+    // report.html: the figure-6 tables and the gallery (8 samples: at most 8 shown, 15
+    // frames each).
+    let html = std::fs::read_to_string(data.join("eval/report.html")).unwrap();
+    assert!(html.contains("id=\"table-deficit-class\""), "{html}");
+    let shown = html.matches("<img src=\"data:image/png;base64,").count();
+    assert!(
+        shown >= 15 && shown.is_multiple_of(15) && shown <= 8 * 15,
+        "{shown}"
+    );
     // A directory without a data set: exit 2, the file named.
     let o = Command::new(env!("CARGO_BIN_EXE_fogline"))
         .args(["rco", "eval", "--data"])

@@ -1,3 +1,4 @@
+from . import dataset as dataset
 from . import envelope as envelope
 from . import planner as planner
 from . import rco as rco

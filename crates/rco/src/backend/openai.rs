@@ -20,7 +20,6 @@
 use std::fmt;
 use std::time::Duration;
 
-use base64::Engine as _;
 use bytes::Bytes;
 use fogline_io::http::PostError;
 use serde::{Deserialize, Serialize};
@@ -156,7 +155,6 @@ impl OpenAiBackend {
 
     /// The JSON request body of `query`.
     pub fn request_body(&self, query: &Query<'_>) -> Result<Value, BackendError> {
-        let b64 = base64::engine::general_purpose::STANDARD;
         let mut content = vec![json!({"type": "text", "text": query.user})];
         if self.params.send_images {
             for img in &query.images {
@@ -168,7 +166,7 @@ impl OpenAiBackend {
                 }));
                 content.push(json!({
                     "type": "image_url",
-                    "image_url": {"url": format!("data:image/png;base64,{}", b64.encode(png))},
+                    "image_url": {"url": fogline_io::data_url(&png, fogline_io::ImageFormat::Png)},
                 }));
             }
         }

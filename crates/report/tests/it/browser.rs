@@ -255,3 +255,120 @@ fn browser_page_loads_offline_renders_every_figure_and_is_screenshotted() {
     assert!(problems.is_empty(), "{}", problems.join("\n"));
     let _ = b.call(None, "Browser.close", json!({}));
 }
+
+const CHECK_GALLERY: &str = r#"(() => {
+  const imgs = [...document.querySelectorAll('.gallery img')];
+  return JSON.stringify({
+    images: imgs.length,
+    decoded: imgs.filter(i => i.complete && i.naturalWidth > 0).length,
+    laid_out: imgs.filter(i => i.getBoundingClientRect().width >= 40).length,
+    samples: document.querySelectorAll('figure.sample').length,
+    tables: document.querySelectorAll('table').length,
+    nan: document.body.innerText.includes('NaN'),
+  });
+})()"#;
+
+/// The DriveLM-Deficit page: every gallery frame decodes from its data URL and is laid out,
+/// with no console error and no request beyond the page and its inline images.
+#[test]
+fn browser_deficit_page_shows_every_gallery_frame() {
+    let exe = chromium_path();
+    assert!(exe.exists(), "{} is missing", exe.display());
+    let text = std::fs::read_to_string(crate_dir().join("tests/data/deficit_eval.json")).unwrap();
+    let e = fogline_report::deficit::deficit_eval_from_json(&text, "deficit_eval.json").unwrap();
+    let picks = fogline_report::deficit::pick_gallery(&e, 3);
+    let gallery = picks
+        .iter()
+        .map(|&i| fogline_report::deficit::GallerySample {
+            id: e.answers[i].id.clone(),
+            expert_rationale: None,
+            frames: (0..15)
+                .map(|k| {
+                    let (camera, w, h) = match k / 5 {
+                        0 => ("cross_left", 96, 72),
+                        1 => ("front_wide", 192, 144),
+                        _ => ("cross_right", 96, 72),
+                    };
+                    fogline_report::deficit::GalleryFrame {
+                        camera: camera.into(),
+                        t_s: f64::from(k % 5) - 4.0,
+                        width: w,
+                        height: h,
+                        rgb: vec![(40 * k) as u8; (w * h * 3) as usize],
+                    }
+                })
+                .collect(),
+        })
+        .collect();
+    let d = fogline_report::deficit::DeficitSection::new(e, gallery).unwrap();
+    let html = fogline_report::deficit::render_page(&d, None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let page = dir.path().join("report.html");
+    std::fs::write(&page, &html).unwrap();
+    let url = format!("file://{}", page.display());
+
+    let mut b = Browser::launch(&exe).unwrap();
+    let target = b
+        .call(None, "Target.createTarget", json!({"url": "about:blank"}))
+        .unwrap();
+    let attached = b
+        .call(
+            None,
+            "Target.attachToTarget",
+            json!({"targetId": target["targetId"], "flatten": true}),
+        )
+        .unwrap();
+    let sid = attached["sessionId"].as_str().unwrap().to_string();
+    let s = Some(sid.as_str());
+    for m in [
+        "Runtime.enable",
+        "Log.enable",
+        "Network.enable",
+        "Page.enable",
+    ] {
+        b.call(s, m, json!({})).unwrap();
+    }
+    b.events.clear();
+    b.call(s, "Page.navigate", json!({"url": url})).unwrap();
+    b.wait_event("Page.loadEventFired", Duration::from_secs(60))
+        .unwrap();
+    b.drain(Duration::from_millis(500));
+    let res = b
+        .call(
+            s,
+            "Runtime.evaluate",
+            json!({"expression": CHECK_GALLERY, "returnByValue": true}),
+        )
+        .unwrap();
+    let v: Value = serde_json::from_str(res["result"]["value"].as_str().unwrap()).unwrap();
+    assert_eq!(v["samples"], 3, "{v}");
+    assert_eq!(v["images"], 45, "{v}");
+    assert_eq!(v["decoded"], 45, "every frame decodes: {v}");
+    assert_eq!(v["laid_out"], 45, "every frame is laid out: {v}");
+    assert!(v["tables"].as_u64().unwrap() >= 5 + 3, "{v}");
+    assert_eq!(v["nan"], false);
+    let mut problems = Vec::new();
+    for ev in &b.events {
+        let p = &ev["params"];
+        match ev["method"].as_str().unwrap_or("") {
+            "Runtime.consoleAPICalled" | "Runtime.exceptionThrown" => {
+                problems.push(format!("{ev}"))
+            }
+            "Log.entryAdded"
+                if matches!(p["entry"]["level"].as_str(), Some("error" | "warning")) =>
+            {
+                problems.push(format!("{ev}"))
+            }
+            "Network.requestWillBeSent" => {
+                let u = p["request"]["url"].as_str().unwrap_or("");
+                if u != url && !u.starts_with("data:image/png;base64,") {
+                    problems.push(format!("network request: {u}"));
+                }
+            }
+            "Network.loadingFailed" => problems.push(format!("loading failed: {p}")),
+            _ => {}
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+    let _ = b.call(None, "Browser.close", json!({}));
+}

@@ -4,6 +4,7 @@
 
 mod browser;
 mod cdp;
+mod deficit;
 mod degenerate;
 mod fixture;
 mod render;
