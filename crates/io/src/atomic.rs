@@ -252,15 +252,14 @@ impl FileSet {
             self.entries = entries;
             return Err(err);
         }
-        let mut dirs: Vec<&Path> = Vec::new();
+        // Each directory synced once (a set: a set of many files in many directories
+        // would make a list search quadratic).
+        let mut dirs: std::collections::BTreeSet<&Path> = std::collections::BTreeSet::new();
         for (e, aside) in &done {
             if let Some(old) = aside {
                 let _ = std::fs::remove_file(old);
             }
-            let d = dir_of(&e.target);
-            if !dirs.contains(&d) {
-                dirs.push(d);
-            }
+            dirs.insert(dir_of(&e.target));
         }
         #[cfg(unix)]
         for d in dirs {
