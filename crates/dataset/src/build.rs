@@ -8,9 +8,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use fogline_io::{FileSet, ImageFormat, Progress};
-use fogline_perturb::{FrameInput, FrameKey, ObjectBox, Perturbation, Prepared};
+use fogline_perturb::{FrameInput, FrameKey, Perturbation, Prepared};
 use fogline_sim::run::SensorParams;
-use fogline_sim::sense::{DETECT_MIN_HEIGHT_FRAC, DETECT_MIN_WIDTH_PX, Weather, rco_cameras};
+use fogline_sim::sense::{Weather, detected, rco_cameras};
 use fogline_stats::seed::child;
 use fogline_types::clip::CameraCalib;
 use fogline_world::render::render;
@@ -206,12 +206,7 @@ pub fn render_plan(
         let mut views = Vec::with_capacity(cameras.len());
         for calib in cameras {
             let view = render(&scene, calib, t, depth);
-            let min_h = DETECT_MIN_HEIGHT_FRAC * f64::from(calib.height);
-            let boxes: Vec<ObjectBox> = view
-                .boxes
-                .into_iter()
-                .filter(|b| b.height_px >= min_h && b.width_px >= DETECT_MIN_WIDTH_PX)
-                .collect();
+            let boxes = detected(view.boxes, calib);
             let input = FrameInput {
                 frame: view.image.view(),
                 key: FrameKey::new(clip_key, calib.id.index() as u64, k as u64),

@@ -629,6 +629,16 @@ pub const DETECT_MIN_HEIGHT_FRAC: f64 = 0.03;
 /// Smallest box width the modelled detector finds, px.
 pub const DETECT_MIN_WIDTH_PX: f64 = 2.0;
 
+/// The boxes the modelled detector finds among a rendered view's `boxes` for `calib`: at
+/// least [`DETECT_MIN_HEIGHT_FRAC`] of the image high and [`DETECT_MIN_WIDTH_PX`] wide.
+pub fn detected(boxes: Vec<ObjectBox>, calib: &CameraCalib) -> Vec<ObjectBox> {
+    let min_h = DETECT_MIN_HEIGHT_FRAC * f64::from(calib.height);
+    boxes
+        .into_iter()
+        .filter(|b| b.height_px >= min_h && b.width_px >= DETECT_MIN_WIDTH_PX)
+        .collect()
+}
+
 /// Renders the surroundings through `calib` and applies the run's lens. The deficit hides
 /// the objects of its class that the paper's detector (YOLO11) would find: boxes at least 3 %
 /// of the image high and 2 px wide (a YOLO-class detector misses objects of a few pixels);
@@ -636,12 +646,7 @@ pub const DETECT_MIN_WIDTH_PX: f64 = 2.0;
 pub fn see(around: &Surround, calib: &CameraCalib, lens: &Lens, key: FrameKey) -> Seen {
     let scene = around.for_camera(calib);
     let view = render(&scene, calib, 0.0, lens.needs_depth());
-    let min_h = DETECT_MIN_HEIGHT_FRAC * f64::from(calib.height);
-    let boxes: Vec<ObjectBox> = view
-        .boxes
-        .into_iter()
-        .filter(|b| b.height_px >= min_h && b.width_px >= DETECT_MIN_WIDTH_PX)
-        .collect();
+    let boxes = detected(view.boxes, calib);
     let (frame, deficits) = lens.apply(view.image, view.depth.as_ref(), &boxes, key);
     Seen {
         frame,
