@@ -598,6 +598,18 @@ impl Baseline {
         // in the frames until close, and a slower car sees them in more frames before it is
         // there.
         let target = target.min(crossing_cap(perc.zebra, p));
+        if log::log_enabled!(log::Level::Debug) {
+            use std::fmt::Write as _;
+            let _ = write!(
+                self.debug,
+                " | mem red {:?} sign {:?} recall {:?} follow {:.1} xing {:.1}",
+                self.red_stop_at_m.map(|m| (m - odometer_m).round()),
+                self.sign_stop_at_m.map(|m| (m - odometer_m).round()),
+                remembered.map(|l| (l.gap * 10.0).round() / 10.0),
+                follow_cap(ahead, speed_mps, cruise, speed_scale),
+                crossing_cap(perc.zebra, p),
+            );
+        }
         self.intent = Intent {
             decision: Some(plan.decision),
             target_mps: target,
@@ -796,15 +808,20 @@ pub const LEAD_RATE_READINGS: usize = 5;
 /// ... which is read once at least three of them span this long, s (the slope of readings
 /// scattered by ±0.5 m is then good to about ±0.5 m/s).
 pub const LEAD_RATE_SPAN_S: f64 = 0.75;
-/// For this many planning steps without seeing it again (4 s at 2.5 Hz)...
-pub const LEAD_MEMORY_PLANS: u64 = 10;
+/// For this long without seeing it again, s ...
+pub const LEAD_MEMORY_S: f64 = 4.0;
 /// ... unless it is closer than this, m: so close, a car's contact is below the wide
 /// camera's view or on paint that reads like it, and not seeing it is weak evidence that
 /// it left (a car that drives straight off is seen again as it pulls away; one that turns
 /// away close ahead is not) ...
 pub const LEAD_BLIND_M: f64 = 5.0;
-/// ... when it is kept for this many steps (30 s at 2.5 Hz, most of a red phase).
-pub const LEAD_BLIND_PLANS: u64 = 75;
+/// ... when it is kept for this long, s (most of a red phase).
+pub const LEAD_BLIND_S: f64 = 30.0;
+/// A standing vehicle is remembered once seen twice, at most this many planning steps
+/// apart ...
+pub const LEAD_CONFIRM_PLANS: u64 = 3;
+/// ... at positions (in distance driven) this close, m.
+pub const LEAD_CONFIRM_M: f64 = 3.0;
 
 /// The brake for a stop point that needs `need` m/s² (see [`Baseline::needed_decel`]):
 /// `None` while the planned deceleration `planned` suffices (the speed PID follows the
@@ -818,8 +835,10 @@ pub fn emergency_brake(need: f64, planned: f64, bike: &BicycleParams) -> Option<
 /// reads like it), and a car that no longer sees it must not drive into it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LeadMemory {
-    /// Where its rear is, in distance driven, m; and the planning step it was last seen.
-    seen: Option<(f64, u64)>,
+    /// Where its rear is, in distance driven, m; and when it was last seen, s.
+    seen: Option<(f64, f64)>,
+    /// A standing vehicle seen once and not yet confirmed: where, and the planning step.
+    candidate: Option<(f64, u64)>,
     /// The vehicle ahead followed over consecutive steps: the least and greatest of its
     /// positions (in distance driven), the last one, and the step it was last seen, m.
     track: Option<(f64, f64, f64, u64)>,
@@ -829,12 +848,17 @@ pub struct LeadMemory {
 }
 
 impl LeadMemory {
-    /// Updates the memory with planning step `plan`'s lead (`None`: none seen).
-    /// A vehicle slower than [`LEAD_MEMORY_MPS`] seen at least [`UNSTICK_KEEP_M`] away is
-    /// remembered; one read closer counts as none (such a reading alone is taken for a
-    /// misreading: a kerb across a turn read so could hold the car for good); a moving
-    /// vehicle replaces it. Without a lead it is forgotten once the car has reached it or
-    /// after [`LEAD_MEMORY_PLANS`] steps ([`LEAD_BLIND_PLANS`] within [`LEAD_BLIND_M`]).
+    /// Updates the memory with planning step `plan`'s lead (`None`: none seen) at time
+    /// `t_s`. A vehicle slower than [`LEAD_MEMORY_MPS`] seen at least [`UNSTICK_KEEP_M`]
+    /// away is remembered once confirmed — seen again within [`LEAD_CONFIRM_PLANS`] steps
+    /// and [`LEAD_CONFIRM_M`] of where it was, as a tracker confirms a track before acting
+    /// on it (a one-off reading of clutter across a turn held cars for minutes) — and a
+    /// consistent reading refreshes it; one read closer than that counts as none (such a
+    /// reading alone is taken for a misreading: a kerb across a turn read so could hold
+    /// the car for good); a moving vehicle replaces it. Without a lead it is forgotten once
+    /// the car has reached it or after [`LEAD_MEMORY_S`] ([`LEAD_BLIND_S`] within
+    /// [`LEAD_BLIND_M`]) — in time, not planning steps: a car standing idle looks less
+    /// often.
     pub fn update(
         &mut self,
         lead: Option<&LeadSeen>,
@@ -870,18 +894,32 @@ impl LeadMemory {
         };
         match lead.filter(|l| l.kind == ObjectKind::Vehicle) {
             Some(l) if l.gap >= UNSTICK_KEEP_M && standing(l) => {
-                self.seen = Some((odometer_m + l.gap, plan));
+                let at = odometer_m + l.gap;
+                let near = |a: f64| (a - at).abs() <= LEAD_CONFIRM_M;
+                let confirmed = self.seen.is_some_and(|(a, _)| near(a))
+                    || self.candidate.is_some_and(|(a, k)| {
+                        near(a) && plan.saturating_sub(k) <= LEAD_CONFIRM_PLANS
+                    });
+                if confirmed {
+                    self.seen = Some((at, t_s));
+                    self.candidate = None;
+                } else {
+                    self.candidate = Some((at, plan));
+                }
             }
-            Some(l) if l.gap >= UNSTICK_KEEP_M => self.seen = None,
+            Some(l) if l.gap >= UNSTICK_KEEP_M => {
+                self.seen = None;
+                self.candidate = None;
+            }
             // None, or a reading too close to trust alone: neither moves nor refreshes it.
             _ => {
-                if self.seen.is_some_and(|(at, k)| {
+                if self.seen.is_some_and(|(at, seen_s)| {
                     let keep = if at - odometer_m < LEAD_BLIND_M {
-                        LEAD_BLIND_PLANS
+                        LEAD_BLIND_S
                     } else {
-                        LEAD_MEMORY_PLANS
+                        LEAD_MEMORY_S
                     };
-                    at < odometer_m || plan - k > keep
+                    at < odometer_m || t_s - seen_s > keep
                 }) {
                     self.seen = None;
                 }
@@ -1078,71 +1116,73 @@ mod tests {
 
     #[test]
     fn a_standing_car_is_remembered_out_of_view() {
+        // Planning step `k` at 2.5 Hz.
+        let at = |k: u64| 0.4 * k as f64;
         let mut m = LeadMemory::default();
-        // Seen standing 6 m ahead at odometer 100: remembered at 106.
-        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 0.4 * (1) as f64, 1.0);
+        // Seen standing 6 m ahead at odometer 100, then 5.5 m ahead at 100.5: confirmed,
+        // remembered at 106.
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, at(1), 1.0);
+        assert_eq!(m.gap(100.0), None, "one sighting is not yet a car");
+        m.update(Some(&vehicle(5.5, 0.0)), 100.5, 2, at(2), 1.0);
         assert_eq!(m.gap(103.0), Some(3.0));
         // Out of view while the car closes in: still there, as a standing lead that stops
         // the car.
-        m.update(None, 103.0, 2, 0.4 * (2) as f64, 1.0);
+        m.update(None, 103.0, 3, at(3), 1.0);
         let r = m.recall(103.0).unwrap();
         assert_eq!((r.gap, r.speed, r.kind), (3.0, 0.0, ObjectKind::Vehicle));
         assert_eq!(follow_cap(Some(&r), 2.0, 8.0, 1.0), 0.0);
-        // 3 m behind it (too close to see it), the car does not forget it...
-        m.update(
-            None,
-            103.0,
-            1 + LEAD_MEMORY_PLANS + 1,
-            0.4 * (1 + LEAD_MEMORY_PLANS + 1) as f64,
-            1.0,
-        );
+        // 3 m behind it (too close to see it), the car does not forget it after
+        // `LEAD_MEMORY_S`...
+        m.update(None, 103.0, 20, at(2) + LEAD_MEMORY_S + 1.0, 1.0);
         assert_eq!(m.gap(103.0), Some(3.0));
-        // ... for `LEAD_BLIND_PLANS` steps (a reading 1 m away, too close to trust alone,
-        // neither moves nor refreshes it), or until past where it was; and forgets it after
-        // `LEAD_MEMORY_PLANS` steps unseen where it would be in view.
-        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 9, 0.4 * (9) as f64, 1.0);
-        m.update(
-            None,
-            103.0,
-            1 + LEAD_BLIND_PLANS,
-            0.4 * (1 + LEAD_BLIND_PLANS) as f64,
-            1.0,
-        );
+        // ... but after `LEAD_BLIND_S` (a reading 1 m away, too close to trust alone,
+        // neither moves nor refreshes it), however few planning steps that took (a car
+        // standing idle looks less often), or once past where it was.
+        m.update(Some(&vehicle(1.0, 0.0)), 103.0, 21, at(2) + 10.0, 1.0);
+        m.update(None, 103.0, 22, at(2) + LEAD_BLIND_S - 0.1, 1.0);
         assert_eq!(m.gap(103.0), Some(3.0));
-        m.update(
-            Some(&vehicle(1.0, 0.0)),
-            103.0,
-            2 + LEAD_BLIND_PLANS,
-            0.4 * (2 + LEAD_BLIND_PLANS) as f64,
-            1.0,
-        );
+        m.update(None, 103.0, 23, at(2) + LEAD_BLIND_S + 0.1, 1.0);
         assert_eq!(m.gap(103.0), None);
-        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 0.4 * (1) as f64, 1.0);
-        m.update(None, 106.5, 2, 0.4 * (2) as f64, 1.0);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, at(1), 1.0);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 2, at(2), 1.0);
+        m.update(None, 106.5, 3, at(3), 1.0);
         assert_eq!(m.gap(106.5), None);
-        m.update(Some(&vehicle(8.0, 0.0)), 100.0, 30, 0.4 * (30) as f64, 1.0);
-        m.update(
-            None,
-            100.0,
-            30 + LEAD_MEMORY_PLANS,
-            0.4 * (30 + LEAD_MEMORY_PLANS) as f64,
-            1.0,
-        );
+        // Unseen where it would be in view: forgotten after `LEAD_MEMORY_S`.
+        m.update(Some(&vehicle(8.0, 0.0)), 100.0, 30, at(30), 1.0);
+        m.update(Some(&vehicle(8.0, 0.0)), 100.0, 31, at(31), 1.0);
+        m.update(None, 100.0, 32, at(31) + LEAD_MEMORY_S - 0.1, 1.0);
         assert_eq!(m.gap(100.0), Some(8.0));
-        m.update(
-            None,
-            100.0,
-            31 + LEAD_MEMORY_PLANS,
-            0.4 * (31 + LEAD_MEMORY_PLANS) as f64,
-            1.0,
-        );
+        m.update(None, 100.0, 33, at(31) + LEAD_MEMORY_S + 0.1, 1.0);
         assert_eq!(m.gap(100.0), None);
         // ... or once it drives off (seen moving), or a close reading alone: never stored.
-        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, 0.4 * (1) as f64, 1.0);
-        m.update(Some(&vehicle(9.0, 16.0)), 100.0, 2, 0.4 * (2) as f64, 4.0);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, at(1), 1.0);
+        m.update(Some(&vehicle(6.0, 0.0)), 100.0, 2, at(2), 1.0);
+        m.update(Some(&vehicle(9.0, 16.0)), 100.0, 3, at(3), 4.0);
         assert_eq!(m.gap(100.0), None);
-        m.update(Some(&vehicle(0.3, 0.0)), 100.0, 3, 0.4 * (3) as f64, 1.0);
+        m.update(Some(&vehicle(0.3, 0.0)), 100.0, 4, at(4), 1.0);
+        m.update(Some(&vehicle(0.3, 0.0)), 100.0, 5, at(5), 1.0);
         assert_eq!(m.gap(100.0), None);
+    }
+
+    #[test]
+    fn a_standing_car_seen_once_or_in_two_places_is_not_remembered() {
+        let at = |k: u64| 0.4 * k as f64;
+        let mut m = LeadMemory::default();
+        // A one-off reading (clutter across a turn read as a car) holds nobody up ...
+        m.update(Some(&vehicle(20.0, 0.0)), 100.0, 1, at(1), 1.0);
+        m.update(None, 101.0, 2, at(2), 1.0);
+        assert_eq!(m.gap(101.0), None);
+        // ... nor do two readings far apart, or too many steps apart.
+        m.update(Some(&vehicle(20.0, 0.0)), 110.0, 10, at(10), 1.0);
+        m.update(Some(&vehicle(12.0, 0.0)), 111.0, 11, at(11), 1.0);
+        assert_eq!(m.gap(111.0), None);
+        m.update(Some(&vehicle(12.0, 0.0)), 111.0, 15, at(15), 1.0);
+        assert_eq!(m.gap(111.0), None);
+        // A remembered car is kept through a stray reading elsewhere.
+        m.update(Some(&vehicle(12.0, 0.0)), 111.0, 16, at(16), 1.0);
+        assert_eq!(m.gap(111.0), Some(12.0));
+        m.update(Some(&vehicle(30.0, 0.0)), 111.0, 17, at(17), 1.0);
+        assert_eq!(m.gap(111.0), Some(12.0));
     }
 
     #[test]
