@@ -7,6 +7,8 @@
 //! - [`demo`]: the whole pipeline offline on built-in data (`fogline demo`);
 //! - [`envelope`]: an analysis's files and the HTML report (`fogline envelope`, `fogline
 //!   report`);
+//! - [`monitor`]: blind noise, gain and fog estimates of image files (`fogline monitor
+//!   estimate`);
 //! - [`perturb_dir`]: perturb a directory of frames (`fogline perturb`);
 //! - [`planner_eval`]: the reference planner on generated clips, clean and perturbed
 //!   (`fogline planner eval`);
@@ -25,6 +27,8 @@ pub mod dataset;
 pub mod demo;
 #[cfg(feature = "jobs")]
 pub mod envelope;
+#[cfg(feature = "jobs")]
+pub mod monitor;
 #[cfg(feature = "jobs")]
 pub mod perturb_dir;
 #[cfg(feature = "jobs")]
@@ -45,9 +49,11 @@ pub mod world;
 ///   batches (`read_pairs_arrow`), and its Markdown;
 /// - [`in_memory::world`] and [`in_memory::planner`]: a generated clip's frames; the reference planner;
 /// - [`in_memory::rco`]: the risk-averse control override and its backends;
+/// - [`in_memory::monitor`]: blind noise, gain, fog and temporal-fault estimates of frames;
 /// - [`in_memory::types`]: the vocabulary they share (cameras, clips, trajectories, decisions).
 pub mod in_memory {
     pub use fogline_envelope as envelope;
+    pub use fogline_monitor as monitor;
     pub use fogline_perturb as perturb;
     pub use fogline_planner as planner;
     pub use fogline_rco as rco;

@@ -11,6 +11,12 @@
 //! precise one) per σ, photographs and world
 //! frames apart, and the ms per frame of each on one thread with their ratio. Without Python
 //! or scikit-image the peer is skipped with a message and only the world frames are measured.
+//!
+//! On the world frames it also measures [`fogline_monitor::estimate_condition`] under
+//! `gain_<g>` ([`GAINS`]) and homogeneous `fog_<α>` ([`FOGS`]) against the true parameter,
+//! and runs [`fogline_monitor::TemporalMonitor`] over every camera's frames in order under
+//! the temporal faults of [`TEMPORAL`] (detection rates on faulted frames, false alarms on
+//! the others).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -220,28 +226,217 @@ impl Peer {
 /// The frames measured: set, name, clean frame.
 type Clean = (FrameSet, String, Frame);
 
-/// Renders the last frame of every camera of `clips` clips at the bench's size.
-fn world_frames(a: &MonitorBench) -> Result<Vec<Clean>> {
+/// One camera's frames of a world clip, in order: (clip, camera, frames).
+type Sequence = (u64, u64, Vec<Frame>);
+
+/// Renders `clips` clips at the bench's size: the last frame of every camera, and every
+/// camera's frames in order.
+fn world_frames(a: &MonitorBench) -> Result<(Vec<Clean>, Vec<Sequence>)> {
     if a.clips == 0 {
-        return Ok(Vec::new());
+        return Ok((Vec::new(), Vec::new()));
     }
     let cfg = fogline_api::planner_eval::world_config(a.clips, a.seed, a.width, a.height)?;
     let per_clip = (0..a.clips)
         .into_par_iter()
-        .map(|i| -> Result<Vec<Clean>> {
+        .map(|i| -> Result<Vec<Sequence>> {
             let clip = fogline_world::generate_clip(&cfg, i)?;
             Ok(clip
                 .cameras
                 .into_iter()
                 .enumerate()
-                .filter_map(|(c, cam)| {
-                    let f = cam.frames.into_iter().last()?;
-                    Some((FrameSet::World, format!("clip{i}/cam{c}"), f.image))
+                .map(|(c, cam)| {
+                    let frames = cam.frames.into_iter().map(|f| f.image).collect();
+                    (i as u64, c as u64, frames)
                 })
                 .collect())
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok(per_clip.into_iter().flatten().collect())
+    let sequences: Vec<Sequence> = per_clip.into_iter().flatten().collect();
+    let last = sequences
+        .iter()
+        .filter_map(|(i, c, frames)| {
+            let f = frames.last()?.clone();
+            Some((FrameSet::World, format!("clip{i}/cam{c}"), f))
+        })
+        .collect();
+    Ok((last, sequences))
+}
+
+/// The gains measured on world frames (`gain_<g>`; `dark` is 0.4, `bright` 1.6).
+pub const GAINS: [f64; 5] = [0.4, 0.7, 1.0, 1.3, 1.6];
+/// The fog opacities measured on world frames (`fog_<α>`, homogeneous: no depth map).
+pub const FOGS: [f64; 6] = [0.0, 0.1, 0.3, 0.5, 0.7, 0.9];
+/// The temporal conditions measured on world sequences (`clean` and `noise_20` for false
+/// alarms).
+pub const TEMPORAL: [&str; 7] = [
+    "clean",
+    "noise_20",
+    "drop_0.5",
+    "freeze_1",
+    "blackout_2",
+    "noise_20+drop_0.5",
+    "noise_20+freeze_1",
+];
+
+/// Error of an estimate with an uncertainty, over the frames of one true value.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamRow {
+    /// The true parameter (gain or fog α).
+    pub truth: f64,
+    /// Frames.
+    pub frames: usize,
+    /// Mean absolute error.
+    pub mae: f64,
+    /// Mean signed error (estimate − truth).
+    pub bias: f64,
+    /// Mean reported standard error.
+    pub mean_se: f64,
+    /// Share of frames whose estimate lies within 2 standard errors of the truth.
+    pub within_2se: f64,
+}
+
+/// One estimate of a known parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ParamSample {
+    /// The true parameter.
+    pub truth: f64,
+    /// The estimate.
+    pub estimate: f64,
+    /// Its reported standard error.
+    pub se: f64,
+}
+
+/// The error table of the samples, by truth ascending.
+pub fn param_table(samples: &[ParamSample]) -> Vec<ParamRow> {
+    let mut truths: Vec<f64> = samples.iter().map(|s| s.truth).collect();
+    truths.sort_by(f64::total_cmp);
+    truths.dedup();
+    truths
+        .into_iter()
+        .map(|truth| {
+            let g: Vec<&ParamSample> = samples.iter().filter(|s| s.truth == truth).collect();
+            let n = g.len() as f64;
+            ParamRow {
+                truth,
+                frames: g.len(),
+                mae: g.iter().map(|s| (s.estimate - truth).abs()).sum::<f64>() / n,
+                bias: g.iter().map(|s| s.estimate - truth).sum::<f64>() / n,
+                mean_se: g.iter().map(|s| s.se).sum::<f64>() / n,
+                within_2se: g
+                    .iter()
+                    .filter(|s| (s.estimate - truth).abs() <= 2.0 * s.se)
+                    .count() as f64
+                    / n,
+            }
+        })
+        .collect()
+}
+
+/// Detections of one temporal condition over the world sequences.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TemporalRow {
+    /// The condition.
+    pub condition: String,
+    /// Frames delivered.
+    pub frames: usize,
+    /// Frames the condition faulted (black, or a repeat of an earlier capture).
+    pub faulty: usize,
+    /// Faulted frames the monitor flagged (any fault).
+    pub detected: usize,
+    /// Faulted frames flagged with the right kind (black as blackout; a `freeze_` repeat as
+    /// frozen or dropped, a `drop_` repeat as dropped or frozen; both are repeats).
+    pub right_kind: usize,
+    /// Frames not faulted that the monitor flagged anyway.
+    pub false_alarms: usize,
+}
+
+/// Runs the temporal monitor over every sequence under every condition of [`TEMPORAL`].
+fn temporal_rows(a: &MonitorBench, sequences: &[Sequence]) -> Result<Vec<TemporalRow>> {
+    use fogline_monitor::{TemporalMonitor, TemporalParams};
+    use fogline_perturb::FrameSource;
+    let mut rows = Vec::new();
+    for name in TEMPORAL {
+        let p = Perturbation::parse(name)?.prepare(a.seed)?;
+        let mut row = TemporalRow {
+            condition: name.to_string(),
+            frames: 0,
+            faulty: 0,
+            detected: 0,
+            right_kind: 0,
+            false_alarms: 0,
+        };
+        for (clip, cam, frames) in sequences {
+            let mut m = TemporalMonitor::new(TemporalParams::default())?;
+            for (i, src) in p
+                .plan_clip(*clip, *cam, frames.len())
+                .into_iter()
+                .enumerate()
+            {
+                let frame = match src {
+                    FrameSource::Black => Frame::new(
+                        a.width,
+                        a.height,
+                        vec![0; (a.width * a.height * 3) as usize],
+                    )?,
+                    FrameSource::Captured(k) => {
+                        let key = FrameKey::new(*clip, *cam, k as u64);
+                        p.apply(&FrameInput::new(&frames[k], key))?.frame
+                    }
+                };
+                let r = m.step(frame.data(), a.width as usize, a.height as usize)?;
+                let faulted = src != FrameSource::Captured(i);
+                row.frames += 1;
+                if faulted {
+                    row.faulty += 1;
+                    row.detected += usize::from(r.faulty());
+                    let kind = match src {
+                        FrameSource::Black => r.black,
+                        FrameSource::Captured(_) => r.repeated,
+                    };
+                    row.right_kind += usize::from(kind);
+                } else {
+                    row.false_alarms += usize::from(r.faulty());
+                }
+            }
+        }
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// Gain and fog estimates of every clean world frame under every level of [`GAINS`] and
+/// [`FOGS`], per frame: gains, then fogs.
+fn condition_samples(
+    a: &MonitorBench,
+    frames: &[Clean],
+) -> Result<(Vec<ParamSample>, Vec<ParamSample>)> {
+    let params = fogline_monitor::ConditionParams::default();
+    let (w, h) = (a.width as usize, a.height as usize);
+    let (mut gains, mut fogs) = (Vec::new(), Vec::new());
+    for (j, (_, _, clean)) in frames.iter().enumerate() {
+        let key = FrameKey::new(j as u64, 0, 0);
+        for &g in &GAINS {
+            let p = Perturbation::parse(&format!("gain_{g:.2}"))?.prepare(a.seed)?;
+            let f = p.apply(&FrameInput::new(clean, key))?.frame;
+            let e = fogline_monitor::estimate_condition(f.data(), w, h, &params)?;
+            gains.push(ParamSample {
+                truth: g,
+                estimate: e.gain,
+                se: e.gain_se,
+            });
+        }
+        for &alpha in &FOGS {
+            let p = Perturbation::parse(&format!("fog_{alpha:.2}"))?.prepare(a.seed)?;
+            let f = p.apply(&FrameInput::new(clean, key))?.frame;
+            let e = fogline_monitor::estimate_condition(f.data(), w, h, &params)?;
+            fogs.push(ParamSample {
+                truth: alpha,
+                estimate: e.fog,
+                se: e.fog_se,
+            });
+        }
+    }
+    Ok((gains, fogs))
 }
 
 /// An estimator's σ and its median ms over `runs` calls after one warm-up.
@@ -320,7 +515,10 @@ pub fn run(a: &MonitorBench, out: &mut dyn Write) -> Result<()> {
         a.width,
         a.height
     );
-    frames.extend(world_frames(a)?);
+    let (world, sequences) = world_frames(a)?;
+    let (gains, fogs) = condition_samples(a, &world)?;
+    let temporal = temporal_rows(a, &sequences)?;
+    frames.extend(world);
     if frames.is_empty() {
         bail!("no frames to measure (no photographs without the peer, and --clips 0)");
     }
@@ -400,12 +598,29 @@ pub fn run(a: &MonitorBench, out: &mut dyn Write) -> Result<()> {
             }
         }
     }
-    report(a, &samples, peer_info, skipped.as_deref(), out)
+    let extra = Extra {
+        gain: param_table(&gains),
+        fog: param_table(&fogs),
+        temporal,
+    };
+    report(a, &samples, &extra, peer_info, skipped.as_deref(), out)
+}
+
+/// The gain, fog and temporal-fault results on world frames.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Extra {
+    /// Gain error per true gain.
+    pub gain: Vec<ParamRow>,
+    /// Fog error per true α.
+    pub fog: Vec<ParamRow>,
+    /// Temporal detections per condition.
+    pub temporal: Vec<TemporalRow>,
 }
 
 fn report(
     a: &MonitorBench,
     samples: &[Sample],
+    extra: &Extra,
     peer: Option<(String, std::collections::BTreeMap<String, String>)>,
     skipped: Option<&str>,
     out: &mut dyn Write,
@@ -441,6 +656,9 @@ fn report(
             "skimage_ms_per_frame": skimage_ms,
             "speed_ratio": ratio,
             "speed_goal": SPEED_GOAL,
+            "gain": extra.gain,
+            "fog": extra.fog,
+            "temporal": extra.temporal,
             "samples": samples,
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
@@ -513,6 +731,68 @@ fn report(
             None => "not measured",
         }
     )?;
+    for (what, rows) in [
+        ("gain (gain_<g>)", &extra.gain),
+        (
+            "fog opacity (fog_<alpha>, homogeneous, airlight 204)",
+            &extra.fog,
+        ),
+    ] {
+        if rows.is_empty() {
+            continue;
+        }
+        writeln!(
+            out,
+            "\n{what}, world frames ({} frames per level), estimate_condition",
+            rows[0].frames
+        )?;
+        writeln!(
+            out,
+            "{:>6} {:>7} {:>7} {:>8} {:>12}",
+            "true", "MAE", "bias", "mean se", "within 2 se"
+        )?;
+        for r in rows {
+            writeln!(
+                out,
+                "{:>6.2} {:>7.3} {:>+7.3} {:>8.3} {:>11.0}%",
+                r.truth,
+                r.mae,
+                r.bias,
+                r.mean_se,
+                100.0 * r.within_2se
+            )?;
+        }
+    }
+    if !extra.temporal.is_empty() {
+        writeln!(
+            out,
+            "\ntemporal faults, world sequences (each camera's frames in order), TemporalMonitor"
+        )?;
+        writeln!(
+            out,
+            "{:<20} {:>6} {:>7} {:>9} {:>10} {:>12}",
+            "condition", "frames", "faulty", "detected", "right kind", "false alarms"
+        )?;
+        let pct = |k: usize, n: usize| {
+            if n == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.0}%", 100.0 * k as f64 / n as f64)
+            }
+        };
+        for r in &extra.temporal {
+            writeln!(
+                out,
+                "{:<20} {:>6} {:>7} {:>9} {:>10} {:>12}",
+                r.condition,
+                r.frames,
+                r.faulty,
+                pct(r.detected, r.faulty),
+                pct(r.right_kind, r.faulty),
+                format!("{}/{}", r.false_alarms, r.frames - r.faulty)
+            )?;
+        }
+    }
     Ok(())
 }
 
@@ -564,10 +844,33 @@ mod tests {
             json: false,
         };
         let mut out = Vec::new();
-        report(&a, &samples, None, Some("no python"), &mut out).unwrap();
+        let extra = Extra {
+            gain: param_table(&[(0.4, 0.5, 0.04), (0.4, 0.4, 0.01), (1.0, 0.9, 0.1)].map(
+                |(truth, estimate, se)| ParamSample {
+                    truth,
+                    estimate,
+                    se,
+                },
+            )),
+            fog: Vec::new(),
+            temporal: vec![TemporalRow {
+                condition: "freeze_1".into(),
+                frames: 8,
+                faulty: 4,
+                detected: 4,
+                right_kind: 3,
+                false_alarms: 0,
+            }],
+        };
+        assert_eq!(extra.gain.len(), 2);
+        assert!((extra.gain[0].mae - 0.05).abs() < 1e-12);
+        assert_eq!(extra.gain[0].within_2se, 0.5);
+        report(&a, &samples, &extra, None, Some("no python"), &mut out).unwrap();
         let text = String::from_utf8(out).unwrap();
         assert!(text.contains("peer skipped"), "{text}");
         assert!(text.contains("NOT met"), "{text}");
         assert!(text.contains("skimage / precise 200x"), "{text}");
+        assert!(text.contains("gain (gain_<g>)"), "{text}");
+        assert!(text.contains("freeze_1"), "{text}");
     }
 }

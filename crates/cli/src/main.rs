@@ -8,6 +8,7 @@ mod backend_args;
 mod bench_campaign;
 mod campaign_cmd;
 mod dataset_cmd;
+mod monitor_cmd;
 mod perturb_cmd;
 mod planner_cmd;
 mod rco_cmd;
@@ -65,6 +66,8 @@ enum Command {
     Bench(perturb_cmd::BenchArgs),
     /// The synthetic driving world: generate a corpus of clips, or show (and check) one clip.
     World(world_cmd::WorldArgs),
+    /// Blind estimates of image quality (noise σ, gain, fog) from the pixels alone.
+    Monitor(monitor_cmd::MonitorArgs),
     /// The reference planner: evaluate it on generated clips, clean and perturbed.
     Planner(planner_cmd::PlannerArgs),
     /// Campaigns: clips × conditions × seeds against a planner, in a crash-safe store.
@@ -234,6 +237,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Bench(a) => perturb_cmd::bench(a),
         Command::World(a) => world_cmd::world(a),
         Command::Planner(a) => planner_cmd::planner(a),
+        Command::Monitor(a) => monitor_cmd::monitor(a),
         Command::Serve(a) => serve_cmd::serve(a),
         Command::Campaign(a) => campaign_cmd::campaign(a),
         Command::Dataset(a) => dataset_cmd::dataset(a),

@@ -7,7 +7,14 @@
 //! - [`estimate_noise`]: the standard deviation of additive noise on the 0–255 scale
 //!   (Immerkær's Laplacian-difference residual, taken robustly through its median).
 //! - [`estimate_noise_precise`]: the same, corrected for the clipping at 0 and 255 that
-//!   makes it read low at high σ, on a denser sample (about 30 times the cost).
+//!   makes it read low at high σ, on a denser sample (about 15 times the cost).
+//!
+//! Every estimate carries its uncertainty (a standard error, or for the temporal faults the
+//! measured evidence next to its threshold).
+//! - [`estimate_condition`]: the photometric gain (`dark` / `bright`) and the fog opacity
+//!   (`fog_<α>`) against a reference profile of clean frames ([`ConditionParams`]).
+//! - [`TemporalMonitor`]: blackout, dropped and frozen frames of one camera's stream.
+//! - [`estimate_frame`]: noise (precise), gain and fog of one frame together.
 //! - [`exposure`]: the frame's white level and mean luminance, the photometric scale that
 //!   colour tests are made relative to.
 //! - [`Censoring`]: the true level behind a mean of noisy pixels clipped at 0 and 255.
@@ -39,6 +46,14 @@ pub enum MonitorError {
         /// The buffer's length.
         got: usize,
     },
+    /// A parameter is out of its range.
+    #[error("invalid {what}: expected {expected}")]
+    Params {
+        /// The parameter.
+        what: &'static str,
+        /// What it must be.
+        expected: &'static str,
+    },
     /// Smaller than 3×3 pixels: no residual can be formed.
     #[error("frame of {width}x{height} is too small (at least 3x3 pixels)")]
     TooSmall {
@@ -47,6 +62,41 @@ pub enum MonitorError {
         /// Height, px.
         height: usize,
     },
+}
+
+mod condition;
+mod noise;
+mod temporal;
+
+/// About this many pixels are sampled per frame by the fast measures (a regular grid).
+const TARGET_SAMPLES: usize = 4_000;
+
+pub use condition::{
+    ConditionEstimate, ConditionParams, PROFILE_QUANTILES, estimate_condition, luma_profile,
+};
+pub use noise::{NoiseEstimate, estimate_noise, estimate_noise_precise};
+pub use temporal::{TemporalMonitor, TemporalParams, TemporalReading};
+
+/// The blind estimates of one frame: noise (by [`estimate_noise_precise`]), gain and fog.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FrameEstimate {
+    /// Gaussian noise σ, 0–255 scale.
+    pub noise: NoiseEstimate,
+    /// Photometric gain and fog opacity.
+    pub condition: ConditionEstimate,
+}
+
+/// Noise, gain and fog of one RGB8 frame (≈ 0.8 ms at 1080p on one core).
+pub fn estimate_frame(
+    rgb: &[u8],
+    width: usize,
+    height: usize,
+    params: &ConditionParams,
+) -> Result<FrameEstimate, MonitorError> {
+    Ok(FrameEstimate {
+        noise: estimate_noise_precise(rgb, width, height)?,
+        condition: estimate_condition(rgb, width, height, params)?,
+    })
 }
 
 fn check(rgb: &[u8], width: usize, height: usize) -> Result<(), MonitorError> {
@@ -63,392 +113,6 @@ fn check(rgb: &[u8], width: usize, height: usize) -> Result<(), MonitorError> {
         return Err(MonitorError::TooSmall { width, height });
     }
     Ok(())
-}
-
-/// A blind estimate of additive, pixel-independent noise.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NoiseEstimate {
-    /// Standard deviation of the noise per channel, 0–255 scale.
-    pub sigma: f64,
-    /// Residuals the estimate is the median of.
-    pub samples: usize,
-    /// Share of the sampled neighbourhoods left out because a value in them sat at 0 or 255
-    /// (there the noise is censored and would read low).
-    pub clipped_share: f64,
-}
-
-/// The Laplacian-difference mask `[[1,−2,1],[−2,4,−2],[1,−2,1]]` has a squared norm of 36.
-const MASK_NORM: f64 = 6.0;
-/// The median of |z| for a standard normal z.
-const MEDIAN_ABS_NORMAL: f64 = 0.674_489_750_196_081_7;
-/// About this many pixels are sampled per frame (a regular grid).
-const TARGET_SAMPLES: usize = 4_000;
-
-/// Estimates the standard deviation of additive Gaussian-like noise in an RGB8 frame.
-///
-/// Every sampled pixel's 3×3 neighbourhood is convolved, per channel, with Immerkær's
-/// Laplacian-difference mask, which cancels any locally planar signal; for independent noise
-/// of standard deviation σ the residual has standard deviation 6σ. The estimate is the
-/// median absolute residual over 6 · 0.6745 — the median, not the mean, so that the edges
-/// of a scene (a minority of neighbourhoods) do not inflate it. Neighbourhoods holding a
-/// 0 or a 255 are left out: clipping censors the noise there. Where most of a frame clips
-/// (strong noise on a dark or bright scene) the remaining neighbourhoods are the ones the
-/// noise happened to keep in range, so the estimate reads somewhat low at very high σ.
-///
-/// Pixels are sampled on a regular grid of about 4,000 points; the result depends on the
-/// pixels only.
-pub fn estimate_noise(
-    rgb: &[u8],
-    width: usize,
-    height: usize,
-) -> Result<NoiseEstimate, MonitorError> {
-    check(rgb, width, height)?;
-    let inner = (width - 2) * (height - 2);
-    let step = ((inner as f64 / TARGET_SAMPLES as f64).sqrt().floor() as usize).max(1);
-    // |residual| ≤ 16 · 255; a histogram gives the exact median without sorting.
-    let mut hist = vec![0u32; 16 * 255 + 1];
-    let (mut n, mut clipped, mut seen) = (0usize, 0usize, 0usize);
-    let stride = width * 3;
-    let mut y = 1;
-    while y + 1 < height {
-        let mut x = 1 + (y / step) % step; // staggered rows: no aliasing with vertical stripes
-        while x + 1 < width {
-            seen += 1;
-            let c = y * stride + x * 3;
-            // The 3 × 3 neighbourhood's rows, 9 bytes each (three RGB pixels).
-            let (a, m, d) = (
-                &rgb[c - stride - 3..c - stride + 6],
-                &rgb[c - 3..c + 6],
-                &rgb[c + stride - 3..c + stride + 6],
-            );
-            // 0 and 255 are the bytes that wrap to 255 and 254 less one (no early exit:
-            // the 27 comparisons are vectorised).
-            let extreme = |row: &[u8]| {
-                row.iter()
-                    .fold(false, |e, &q| e | (q.wrapping_sub(1) >= 254))
-            };
-            if extreme(a) | extreme(m) | extreme(d) {
-                clipped += 1;
-            } else {
-                for ch in 0..3 {
-                    let v = |row: &[u8], k: usize| i32::from(row[k * 3 + ch]);
-                    let r = v(a, 0) - 2 * v(a, 1) + v(a, 2) - 2 * v(m, 0) + 4 * v(m, 1)
-                        - 2 * v(m, 2)
-                        + v(d, 0)
-                        - 2 * v(d, 1)
-                        + v(d, 2);
-                    hist[r.unsigned_abs() as usize] += 1;
-                    n += 1;
-                }
-            }
-            x += step;
-        }
-        y += step;
-    }
-    let clipped_share = if seen > 0 {
-        clipped as f64 / seen as f64
-    } else {
-        0.0
-    };
-    if n == 0 {
-        return Ok(NoiseEstimate {
-            sigma: 0.0,
-            samples: 0,
-            clipped_share,
-        });
-    }
-    let sigma = median_of_histogram(&hist, n) / (MASK_NORM * MEDIAN_ABS_NORMAL);
-    Ok(NoiseEstimate {
-        sigma,
-        samples: n,
-        clipped_share,
-    })
-}
-
-/// The median of the values a histogram counts (the mean of the two middle ones for an even
-/// count).
-fn median_of_histogram(hist: &[u32], n: usize) -> f64 {
-    let value_at = |rank: usize| -> f64 {
-        let mut acc = 0usize;
-        for (v, &c) in hist.iter().enumerate() {
-            acc += c as usize;
-            if acc > rank {
-                return v as f64;
-            }
-        }
-        (hist.len() - 1) as f64
-    };
-    if n % 2 == 1 {
-        value_at(n / 2)
-    } else {
-        0.5 * (value_at(n / 2 - 1) + value_at(n / 2))
-    }
-}
-
-/// [`estimate_noise_precise`] samples a regular grid of about this many pixels.
-const PRECISE_SAMPLES: usize = 40_000;
-/// Level bins of [`estimate_noise_precise`], 4 levels each.
-const LEVEL_BINS: usize = 64;
-/// Residuals are counted up to this absolute value (larger ones are edges: the median of
-/// noise of σ ≤ 120 lies below 6 · 0.6745 · 120 ≈ 486).
-const RESIDUAL_BINS: usize = 512;
-/// Marks a sampled neighbourhood that holds a 0 or a 255.
-const CLIPPED: i16 = i16::MIN;
-
-/// Estimates additive Gaussian noise like [`estimate_noise`], correcting for the clipping
-/// at 0 and 255 that makes that one read low at high σ (mean absolute error ≈ 1 at σ = 70
-/// on photographs, ≤ 0.2 up to σ = 50), at about 30 times the cost (≈ 1.5–1.7 ms a 1080p
-/// frame on one core; docs/monitor.md).
-///
-/// The residual is the same (Immerkær's mask on each channel's 3×3 neighbourhood) on a
-/// regular grid of about 40,000 pixels, each channel apart, without the neighbourhoods that
-/// hold a 0 or a 255. Those kept are neighbourhoods where the noise happened to stay in
-/// range: given the true level `J`, each of their samples is `J + K` with `K` a normal
-/// *truncated* to `[0.5 − J, 254.5 − J]`, of standard deviation `σ · ρ(σ, J)`,
-/// `ρ² = 1 + (αφ(α) − βφ(β))/Z − ((φ(α) − φ(β))/Z)²`, `α = (0.5 − J)/σ`,
-/// `β = (254.5 − J)/σ`, `Z = Φ(β) − Φ(α)`. `J` is read from the eight neighbouring grid
-/// points' neighbourhoods (72 pixels, clipped ones included, so independent of the residual's
-/// own noise): their mean is the censored mean `g(J)` of [`Censoring`], inverted for the
-/// σ being tried. Residuals are binned by that mean (4 levels a bin); σ is the value at
-/// which half of all residuals lie within `6 · 0.6745 · σ · ρ(σ, J_bin)` (bisection; counts
-/// interpolated between integer residuals). Without clipping `ρ = 1` and this is the median
-/// of [`estimate_noise`] on a denser sample.
-///
-/// Edges bias it upward as they do [`estimate_noise`]; the result depends on the pixels only.
-pub fn estimate_noise_precise(
-    rgb: &[u8],
-    width: usize,
-    height: usize,
-) -> Result<NoiseEstimate, MonitorError> {
-    check(rgb, width, height)?;
-    let inner = (width - 2) * (height - 2);
-    let step = ((inner as f64 / PRECISE_SAMPLES as f64).sqrt().floor() as usize).max(3);
-    let (nx, ny) = ((width - 2).div_ceil(step), (height - 2).div_ceil(step));
-    // Pass 1: per grid point and channel, the neighbourhood's sum and residual.
-    let mut sums = vec![[0u16; 3]; nx * ny];
-    let mut res = vec![[CLIPPED; 3]; nx * ny];
-    let stride = width * 3;
-    for gy in 0..ny {
-        let y = 1 + gy * step;
-        for gx in 0..nx {
-            let c = y * stride + (1 + gx * step) * 3;
-            let (a, m, d) = (
-                &rgb[c - stride - 3..c - stride + 6],
-                &rgb[c - 3..c + 6],
-                &rgb[c + stride - 3..c + stride + 6],
-            );
-            let (s, r) = (&mut sums[gy * nx + gx], &mut res[gy * nx + gx]);
-            for ch in 0..3 {
-                let q = [
-                    a[ch],
-                    a[ch + 3],
-                    a[ch + 6],
-                    m[ch],
-                    m[ch + 3],
-                    m[ch + 6],
-                    d[ch],
-                    d[ch + 3],
-                    d[ch + 6],
-                ];
-                let i = q.map(i32::from);
-                s[ch] = i.iter().sum::<i32>() as u16;
-                if !q.iter().fold(false, |e, &p| e | (p.wrapping_sub(1) >= 254)) {
-                    r[ch] = (i[0] - 2 * i[1] + i[2] - 2 * i[3] + 4 * i[4] - 2 * i[5] + i[6]
-                        - 2 * i[7]
-                        + i[8]) as i16;
-                }
-            }
-        }
-    }
-    // Pass 2: the kept residuals binned by their eight neighbours' mean level.
-    let mut hist = vec![0u32; LEVEL_BINS * RESIDUAL_BINS];
-    let (mut n, mut seen) = (0usize, 0usize);
-    for gy in 1..ny.saturating_sub(1) {
-        for gx in 1..nx.saturating_sub(1) {
-            let at = gy * nx + gx;
-            for ch in 0..3 {
-                seen += 1;
-                let r = res[at][ch];
-                if r == CLIPPED {
-                    continue;
-                }
-                let around: u32 = [
-                    at - nx - 1,
-                    at - nx,
-                    at - nx + 1,
-                    at - 1,
-                    at + 1,
-                    at + nx - 1,
-                    at + nx,
-                    at + nx + 1,
-                ]
-                .iter()
-                .map(|&k| u32::from(sums[k][ch]))
-                .sum();
-                let bin = ((around / (72 * 4)) as usize).min(LEVEL_BINS - 1);
-                hist[bin * RESIDUAL_BINS + (r.unsigned_abs() as usize).min(RESIDUAL_BINS - 1)] += 1;
-                n += 1;
-            }
-        }
-    }
-    let clipped_share = if seen > 0 {
-        1.0 - n as f64 / seen as f64
-    } else {
-        0.0
-    };
-    if n == 0 {
-        return Ok(NoiseEstimate {
-            sigma: 0.0,
-            samples: 0,
-            clipped_share,
-        });
-    }
-    // Per bin: how many residuals lie at or below each value (prefix sums).
-    let mut counts = vec![0u32; LEVEL_BINS];
-    for (b, row) in hist.chunks_exact_mut(RESIDUAL_BINS).enumerate() {
-        let mut acc = 0u32;
-        for c in row.iter_mut() {
-            acc += *c;
-            *c = acc;
-        }
-        counts[b] = acc;
-    }
-    // Residuals within `t`: an integer residual k ≥ 1 spread evenly over [k − ½, k + ½],
-    // a zero over [0, ½].
-    let below = |row: &[u32], t: f64| -> f64 {
-        if t <= 0.0 {
-            return 0.0;
-        }
-        if t < 0.5 {
-            return f64::from(row[0]) * 2.0 * t;
-        }
-        let k = (t + 0.5).floor() as usize;
-        if k >= RESIDUAL_BINS {
-            return f64::from(row[RESIDUAL_BINS - 1]);
-        }
-        let lo = f64::from(row[k - 1]);
-        lo + (f64::from(row[k]) - lo) * (t + 0.5 - k as f64)
-    };
-    let half = n as f64 / 2.0;
-    let share_within = |sigma: f64| -> f64 {
-        let rho = truncation_ratios(sigma);
-        let scale = MASK_NORM * MEDIAN_ABS_NORMAL * sigma;
-        hist.chunks_exact(RESIDUAL_BINS)
-            .enumerate()
-            .filter(|(b, _)| counts[*b] > 0)
-            .map(|(b, row)| below(row, scale * rho[b]))
-            .sum::<f64>()
-    };
-    // Half the residuals zero: no noise to speak of (a flat or synthetic frame).
-    if hist
-        .chunks_exact(RESIDUAL_BINS)
-        .map(|row| f64::from(row[0]))
-        .sum::<f64>()
-        >= half
-    {
-        return Ok(NoiseEstimate {
-            sigma: 0.0,
-            samples: n,
-            clipped_share,
-        });
-    }
-    // The plain median (ρ = 1) brackets σ closely; widen the bracket if it does not, then
-    // bisect (the share within the threshold grows with σ).
-    let mut total = vec![0f64; RESIDUAL_BINS];
-    for row in hist.chunks_exact(RESIDUAL_BINS) {
-        for (t, &c) in total.iter_mut().zip(row) {
-            *t += f64::from(c);
-        }
-    }
-    let median = total
-        .iter()
-        .position(|&c| c >= half)
-        .unwrap_or(RESIDUAL_BINS - 1);
-    let plain = (median as f64).max(0.5) / (MASK_NORM * MEDIAN_ABS_NORMAL);
-    let (mut lo, mut hi) = (0.8 * plain, 1.6 * plain + 1.0);
-    while share_within(lo) > half && lo > 1e-3 {
-        lo *= 0.5;
-    }
-    while share_within(hi) < half && hi < 1e4 {
-        hi *= 2.0;
-    }
-    for _ in 0..24 {
-        let mid = 0.5 * (lo + hi);
-        if share_within(mid) < half {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    Ok(NoiseEstimate {
-        sigma: 0.5 * (lo + hi),
-        samples: n,
-        clipped_share,
-    })
-}
-
-/// For noise `sigma` and each level bin of [`estimate_noise_precise`]: the ratio ρ of the
-/// standard deviation of a sample kept in [0.5, 254.5] to σ, at the true level whose censored
-/// mean `g(J)` is the bin's centre.
-fn truncation_ratios(sigma: f64) -> [f64; LEVEL_BINS] {
-    let mut rho = [1.0; LEVEL_BINS];
-    if sigma < 0.5 {
-        return rho;
-    }
-    // (censored mean, effective ρ) on a grid of true levels; the censored mean increases
-    // with J. The effective ρ also moves the median of |residual| for the truncated shape
-    // (Edgeworth: the residual's excess kurtosis is κ/4 and skewness γ/6 of one sample's).
-    const GRID: usize = 64;
-    let (j0, j1) = (-1.5 * sigma, 255.0 + 1.5 * sigma);
-    let dj = (j1 - j0) / GRID as f64;
-    let (he3, he5) = (-1.716_6, 7.189);
-    let table: Vec<(f64, f64)> = (0..=GRID)
-        .map(|i| {
-            let j = j0 + dj * i as f64;
-            let (al, be) = ((0.5 - j) / sigma, (254.5 - j) / sigma);
-            let (ca, cb) = (normal_cdf(al), normal_cdf(be));
-            let z = (cb - ca).max(1e-12);
-            let (pa, pb) = (normal_pdf(al), normal_pdf(be));
-            let m1 = (pa - pb) / z;
-            let m2 = 1.0 + (al * pa - be * pb) / z;
-            let m3 = 2.0 * m1 + (al * al * pa - be * be * pb) / z;
-            let m4 = 3.0 * m2 + (al.powi(3) * pa - be.powi(3) * pb) / z;
-            let var = (m2 - m1 * m1).max(1e-6);
-            let mu3 = m3 - 3.0 * m1 * m2 + 2.0 * m1.powi(3);
-            let mu4 = m4 - 4.0 * m1 * m3 + 6.0 * m1 * m1 * m2 - 3.0 * m1.powi(4);
-            let (gamma, kappa) = (mu3 / (var * var.sqrt()), mu4 / (var * var) - 3.0);
-            let q =
-                MEDIAN_ABS_NORMAL + kappa / 4.0 / 24.0 * he3 + (gamma / 6.0).powi(2) / 72.0 * he5;
-            // E[clip(J + K)]: 0 below, 255 above, the truncated mean between.
-            let censored = 255.0 * (1.0 - cb) + z * (j + sigma * m1);
-            (censored, var.sqrt() * q / MEDIAN_ABS_NORMAL)
-        })
-        .collect();
-    // ρ at a true level, interpolated on the grid.
-    let at = |j: f64| -> f64 {
-        let u = ((j - j0) / dj).clamp(0.0, GRID as f64 - 1e-9);
-        let i = u.floor() as usize;
-        table[i].1 + (u - i as f64) * (table[i + 1].1 - table[i].1)
-    };
-    // The level is read from 72 noisy pixels: average ρ over its error (three-point
-    // Gauss–Hermite, ±√3 standard errors).
-    let err = sigma / 72f64.sqrt() * 3f64.sqrt();
-    let mut k = 0;
-    for (b, r) in rho.iter_mut().enumerate() {
-        let centre = 4.0 * b as f64 + 2.0;
-        while k + 2 < table.len() && table[k + 1].0 < centre {
-            k += 1;
-        }
-        let (m0, m1) = (table[k].0, table[k + 1].0);
-        let f = if m1 > m0 {
-            ((centre - m0) / (m1 - m0)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let j = j0 + dj * (k as f64 + f);
-        *r = (4.0 * at(j) + at(j - err) + at(j + err)) / 6.0;
-    }
-    rho
 }
 
 /// The photometric scale of a frame.
@@ -513,7 +177,7 @@ pub fn normal_cdf(z: f64) -> f64 {
 }
 
 /// The standard normal density φ.
-fn normal_pdf(z: f64) -> f64 {
+pub(crate) fn normal_pdf(z: f64) -> f64 {
     (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt()
 }
 
@@ -698,6 +362,8 @@ mod tests {
                 est.sigma
             );
             assert!(est.samples > 10_000 && est.clipped_share < 0.9, "{est:?}");
+            // The standard error is positive and small next to σ.
+            assert!(est.sigma_se > 0.0 && est.sigma_se < 0.03 * sigma, "{est:?}");
             if sigma >= 50.0 {
                 // The uncorrected median reads far low here: what the correction is for.
                 let fast = estimate_noise(&frame, w, h).unwrap().sigma;

@@ -582,3 +582,93 @@ fn help_lists_the_commands_with_examples() {
         assert!(s.contains(k), "{k}");
     }
 }
+
+/// A smooth 240×160 scene (ramps and bands, levels 40–210): no texture to mistake for noise.
+fn write_smooth(path: &Path) {
+    let (w, h) = (240u32, 160u32);
+    let data: Vec<u8> = (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = (i % w, i / w);
+            let base = 40 + (x * 120 / w) + if y > h / 2 { 50 } else { 0 };
+            [base as u8, (base + 5) as u8, (base + 10) as u8]
+        })
+        .collect();
+    write_png(path, w, h, &data, image::ExtendedColorType::Rgb8);
+}
+
+#[test]
+fn r20_monitor_estimate_reads_what_perturb_added_and_names_bad_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    write_smooth(&input.join("a.png"));
+    let noisy = dir.path().join("noisy");
+    let dark = dir.path().join("dark");
+    for (out, cond) in [(&noisy, "noise_30"), (&dark, "dark")] {
+        let o = fogline(&[
+            "perturb",
+            "--input",
+            input.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
+            "--condition",
+            cond,
+            "--seed",
+            "3",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let bad = dir.path().join("not-an-image.png");
+    std::fs::write(&bad, b"hello").unwrap();
+    let (a, n, d) = (input.join("a.png"), noisy.join("a.png"), dark.join("a.png"));
+    let o = fogline(&[
+        "monitor",
+        "estimate",
+        a.to_str().unwrap(),
+        n.to_str().unwrap(),
+        bad.to_str().unwrap(),
+        d.to_str().unwrap(),
+        "--json",
+    ]);
+    // The bad file is an error naming it (exit 2); the others are still measured.
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not-an-image.png"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 3);
+    for r in &rows {
+        for key in [
+            "path",
+            "noise_sigma",
+            "noise_sigma_se",
+            "gain",
+            "gain_se",
+            "fog",
+            "fog_se",
+            "ms",
+        ] {
+            assert!(r.get(key).is_some(), "{key} missing in {r}");
+        }
+    }
+    let sigma = |r: &serde_json::Value| r["noise_sigma"].as_f64().unwrap();
+    assert!(sigma(&rows[0]) < 1.0, "{}", rows[0]);
+    assert!((sigma(&rows[1]) - 30.0).abs() < 2.0, "{}", rows[1]);
+    // dark is a gain of 0.4: whatever the scene reads, the dark copy reads 0.4 of it.
+    let ratio = rows[2]["gain"].as_f64().unwrap() / rows[0]["gain"].as_f64().unwrap();
+    assert!((ratio - 0.4).abs() < 0.05, "{} vs {}", rows[2], rows[0]);
+    assert!(rows[1]["path"].as_str().unwrap().ends_with("a.png"));
+
+    // Without --json: a table with a header, exit 0 when every file reads.
+    let o = fogline(&["monitor", "estimate", a.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.starts_with(" sigma") && text.contains("a.png"),
+        "{text}"
+    );
+    let o = fogline(&["monitor", "estimate", "/no/such/file.png"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("/no/such/file.png"), "{}", stderr(&o));
+}
