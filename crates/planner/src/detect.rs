@@ -79,7 +79,7 @@ pub struct Detections {
 /// Objects of `p` with their image boxes: the lead in the ego lane, and the one in the lane
 /// to the left when `p` comes from [`crate::perceive::perceive_objects`].
 pub fn objects(p: &Perception, input: &PlannerInput<'_>) -> Vec<ObjectSeen> {
-    let centre = |x: f64| p.lane_offset + 0.5 * p.kappa * x * x;
+    let centre = |x: f64| p.lane_offset + p.lane_heading * x + 0.5 * p.kappa * x * x;
     let mut out = Vec::new();
     for (lane, seen, shift) in [
         (LaneOf::Ego, p.lead, 0.0),

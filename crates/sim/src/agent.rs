@@ -461,7 +461,8 @@ impl Baseline {
                 perc.road_end,
                 perc.lane.map(|l| (
                     (l.offset * 100.0).round() / 100.0,
-                    (l.width * 100.0).round() / 100.0
+                    (l.width * 100.0).round() / 100.0,
+                    (l.heading * 1000.0).round() / 1000.0
                 )),
                 perc.road_lum
             );
