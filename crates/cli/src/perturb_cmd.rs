@@ -82,6 +82,12 @@ enum BenchCommand {
         after_help = "Examples:\n  fogline bench monitor\n  fogline bench monitor --clips 1 --json"
     )]
     Monitor(fogline_bench::monitor::MonitorBench),
+    /// The runtime ODD monitor on the demo corpus, sigma drawn uniformly per clip, against
+    /// the decision of the true sigma under an odd.json (issue 20).
+    #[command(
+        after_help = "Examples:\n  fogline demo --no-closed-loop --out fogline-demo\n  fogline bench monitor-eval --odd fogline-demo/odd.json\n  fogline bench monitor-eval --odd fogline-demo/odd.json --seed 1 --json"
+    )]
+    MonitorEval(fogline_bench::monitor_eval::MonitorEval),
 }
 
 #[derive(Args)]
@@ -170,5 +176,9 @@ pub fn bench(a: BenchArgs) -> Result<ExitCode> {
         BenchCommand::Campaign(c) => crate::bench_campaign::bench_campaign(c),
         BenchCommand::Monitor(m) => fogline_bench::monitor::run(&m, &mut std::io::stdout().lock())
             .map(|()| ExitCode::SUCCESS),
+        BenchCommand::MonitorEval(m) => {
+            fogline_bench::monitor_eval::run(&m, &mut std::io::stdout().lock())
+                .map(|()| ExitCode::SUCCESS)
+        }
     }
 }

@@ -587,12 +587,34 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             .cloned();
         let Some(th) = th else { continue };
         let p_high = high_severity.by_scenario[gi].share;
-        let threshold_group = match th.vs_aggregate {
+        let group_of = |v: Option<VsAggregate>| match v {
             Some(VsAggregate::Tighter) => "tight",
             Some(VsAggregate::Matches) => "match",
             Some(VsAggregate::Looser) => "loose",
             None => "undefined",
         };
+        let threshold_group = group_of(th.vs_aggregate);
+        // Every axis's threshold at the headline budget, so a runtime monitor has an
+        // envelope for each condition it estimates (the headline axis is among them).
+        let per_axis: Vec<AxisThreshold> = axes
+            .iter()
+            .filter_map(|a| {
+                let t = thresholds
+                    .iter()
+                    .find(|x| x.scenario == *name && x.axis == a.axis && x.budget == hb)?;
+                Some(AxisThreshold {
+                    axis: a.axis.clone(),
+                    family: a.family.clone(),
+                    descending: a.axis == "darken",
+                    identity_level: fogline_types::Family::from_name(&a.family).identity_level(),
+                    levels: a.levels.clone(),
+                    sigma_star: t.sigma_star,
+                    right_censored: t.right_censored,
+                    ci95: t.ci95,
+                    threshold_group: group_of(t.vs_aggregate).into(),
+                })
+            })
+            .collect();
         let severity_group = match (p_high, overall_high) {
             (Some(ph), Some(po)) => {
                 if ph <= po {
@@ -651,6 +673,7 @@ pub fn analyze(t: &PairTable, p: &EnvelopeParams) -> Result<Envelope> {
             quadrant: format!("{threshold_group} + {severity_group}"),
             accepted,
             acceptance_reason,
+            thresholds: per_axis,
         });
     }
 

@@ -342,7 +342,7 @@ pub struct Joint {
 
 /// The two-dimensional ODD entry of one scenario (table 4): one definition with `odd.json`'s
 /// readers, in `fogline_types::odd`.
-pub use fogline_types::odd::OddEntry;
+pub use fogline_types::odd::{AxisThreshold, OddEntry};
 
 /// A correlation with its p-value.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]

@@ -18,6 +18,12 @@
 //! - [`exposure`]: the frame's white level and mean luminance, the photometric scale that
 //!   colour tests are made relative to.
 //! - [`Censoring`]: the true level behind a mean of noisy pixels clipped at 0 and 255.
+//! - [`Monitor`] (module [`runtime`]): the runtime ODD monitor — these estimates smoothed
+//!   over time against a scenario's entry of the envelope's `odd.json`
+//!   ([`fogline_types::odd::OddSpec`]) → in / out of the envelope with the entry's severity
+//!   quadrant, hysteresis and a minimum dwell; one [`MonitorRecord`] per frame (the
+//!   JSON-lines log of `fogline monitor run`). The hand-over policy lives here so that every
+//!   consumer (the CLI, the Python package, the closed loop) applies the same one.
 //!
 //! ```
 //! // A flat grey frame has no noise and a white level of its grey.
@@ -54,6 +60,22 @@ pub enum MonitorError {
         /// What it must be.
         expected: &'static str,
     },
+    /// The `odd.json` has no entry for the scenario.
+    #[error("odd.json has no entry for scenario {scenario:?} (entries: {known})")]
+    Scenario {
+        /// The scenario asked for.
+        scenario: String,
+        /// The entries' scenarios, comma-separated.
+        known: String,
+    },
+    /// The scenario's entry has no threshold on any axis the monitor watches.
+    #[error("odd.json entry {scenario:?} has no threshold on any watched axis ({axes})")]
+    NoEnvelope {
+        /// The scenario.
+        scenario: String,
+        /// The watched axes, comma-separated.
+        axes: String,
+    },
     /// Smaller than 3×3 pixels: no residual can be formed.
     #[error("frame of {width}x{height} is too small (at least 3x3 pixels)")]
     TooSmall {
@@ -66,6 +88,7 @@ pub enum MonitorError {
 
 mod condition;
 mod noise;
+pub mod runtime;
 mod temporal;
 
 /// About this many pixels are sampled per frame by the fast measures (a regular grid).
@@ -75,6 +98,9 @@ pub use condition::{
     ConditionEstimate, ConditionParams, PROFILE_QUANTILES, estimate_condition, luma_profile,
 };
 pub use noise::{NoiseEstimate, estimate_noise, estimate_noise_precise};
+pub use runtime::{
+    AxisReading, ESTIMATED_AXES, Monitor, MonitorParams, MonitorRecord, Observation,
+};
 pub use temporal::{TemporalMonitor, TemporalParams, TemporalReading};
 
 /// The blind estimates of one frame: noise (by [`estimate_noise_precise`]), gain and fog.

@@ -691,6 +691,145 @@ impl RcoController {
     }
 }
 
+/// One `H × W × 3` uint8 frame as a borrowed byte slice with its size, or an error naming
+/// `what`.
+fn with_frame<R>(
+    image: &Bound<'_, PyAny>,
+    what: &str,
+    f: impl FnOnce(&[u8], usize, usize) -> PyResult<R>,
+) -> PyResult<R> {
+    let a = array_of::<u8>(image, what, "uint8")?;
+    let shape = a.shape().to_vec();
+    let (_, h, w, batched) = frame_shape(&shape)?;
+    if batched {
+        return Err(value_error(
+            what,
+            format!("expected one frame of shape (H, W, 3), got {shape:?}"),
+        ));
+    }
+    let ro = a.try_readonly().map_err(|e| value_error(what, e))?;
+    let bytes = ro.as_slice().map_err(|_| {
+        value_error(
+            what,
+            "the array is not C-contiguous: pass np.ascontiguousarray(frame)",
+        )
+    })?;
+    f(bytes, w as usize, h as usize)
+}
+
+/// Blind estimates of one frame (`fogline_monitor::estimate_frame`): JSON of
+/// `{noise: {sigma, sigma_se, samples, clipped_share}, condition: {gain, gain_se, fog,
+/// fog_se, quantiles_used}}`. `condition` is the JSON of `ConditionParams` (`{}`: the
+/// defaults). The GIL is released while the frame is measured.
+#[pyfunction]
+#[pyo3(signature = (image, condition="{}"))]
+fn monitor_estimate(py: Python<'_>, image: &Bound<'_, PyAny>, condition: &str) -> PyResult<String> {
+    let params: api::monitor::ConditionParams =
+        serde_json::from_str(condition).map_err(|e| value_error("condition", e))?;
+    params.validate().map_err(|e| value_error("condition", e))?;
+    let e = with_frame(image, "image", |rgb, w, h| {
+        py.detach(|| api::monitor::estimate_frame(rgb, w, h, &params))
+            .map_err(|e| value_error("image", e))
+    })?;
+    serde_json::to_string(&e).map_err(|e| value_error("estimate", e))
+}
+
+/// The runtime ODD monitor of one camera stream (the Python class `fogline.monitor.Monitor`
+/// wraps it; records cross as JSON, frames as arrays).
+#[pyclass(module = "fogline._fogline")]
+struct MonitorCore {
+    /// Behind a mutex: a Python object may be touched from several threads.
+    monitor: std::sync::Mutex<api::monitor::Monitor>,
+}
+
+impl MonitorCore {
+    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, api::monitor::Monitor>> {
+        self.monitor
+            .lock()
+            .map_err(|_| PyValueError::new_err("the monitor failed in another thread"))
+    }
+}
+
+#[pymethods]
+impl MonitorCore {
+    /// `odd`: the text of an `odd.json`; `params`: JSON of `MonitorParams` (missing fields:
+    /// the defaults).
+    #[new]
+    #[pyo3(signature = (odd, scenario, params="{}"))]
+    fn new(odd: &str, scenario: &str, params: &str) -> PyResult<Self> {
+        let odd = api::types::odd::OddSpec::from_json(odd).map_err(|e| value_error("odd", e))?;
+        let params: api::monitor::MonitorParams =
+            serde_json::from_str(params).map_err(|e| value_error("params", e))?;
+        let m = api::monitor::Monitor::new(&odd, scenario, params)
+            .map_err(|e| value_error("monitor", e))?;
+        Ok(Self {
+            monitor: std::sync::Mutex::new(m),
+        })
+    }
+
+    /// Measures one `H × W × 3` uint8 frame and steps; the record as JSON.
+    fn step_frame(&self, py: Python<'_>, image: &Bound<'_, PyAny>) -> PyResult<String> {
+        let mut guard = self.lock()?;
+        let m = &mut *guard;
+        let rec = with_frame(image, "frame", |rgb, w, h| {
+            py.detach(|| m.step_frame(rgb, w, h))
+                .map_err(|e| value_error("frame", e))
+        })?;
+        serde_json::to_string(&rec).map_err(|e| value_error("record", e))
+    }
+
+    /// Steps on estimates (JSON of an `Observation`); the record as JSON.
+    fn step(&self, observation: &str) -> PyResult<String> {
+        let obs: api::monitor::Observation =
+            serde_json::from_str(observation).map_err(|e| value_error("estimates", e))?;
+        let rec = self
+            .lock()?
+            .step(&obs)
+            .map_err(|e| value_error("estimates", e))?;
+        serde_json::to_string(&rec).map_err(|e| value_error("record", e))
+    }
+
+    /// Switches to another scenario's entry, keeping the averages and the state.
+    fn set_scenario(&self, scenario: &str) -> PyResult<()> {
+        self.lock()?
+            .set_scenario(scenario)
+            .map_err(|e| value_error("scenario", e))
+    }
+
+    /// Forgets the stream.
+    fn reset(&self) -> PyResult<()> {
+        self.lock()?.reset();
+        Ok(())
+    }
+
+    /// The decision so far (None before the first step).
+    fn in_envelope(&self) -> PyResult<Option<bool>> {
+        Ok(self.lock()?.in_envelope())
+    }
+
+    /// The scenario in use.
+    fn scenario(&self) -> PyResult<String> {
+        Ok(self.lock()?.scenario().to_string())
+    }
+
+    /// The axes watched for the scenario.
+    fn watched_axes(&self) -> PyResult<Vec<String>> {
+        Ok(self
+            .lock()?
+            .watched_axes()
+            .into_iter()
+            .map(str::to_string)
+            .collect())
+    }
+}
+
+/// The default `MonitorParams` as JSON.
+#[pyfunction]
+fn monitor_defaults() -> PyResult<String> {
+    serde_json::to_string(&api::monitor::MonitorParams::default())
+        .map_err(|e| value_error("params", e))
+}
+
 /// The bounding boxes `(x, y, width, height)` of the connected regions of a 2-D deficit mask
 /// (non-zero = lost), in first-pixel order.
 #[pyfunction]
@@ -1129,6 +1268,9 @@ fn _fogline(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(world_scenarios, m)?)?;
     m.add_function(wrap_pyfunction!(planner_plan, m)?)?;
     m.add_class::<RcoController>()?;
+    m.add_class::<MonitorCore>()?;
+    m.add_function(wrap_pyfunction!(monitor_estimate, m)?)?;
+    m.add_function(wrap_pyfunction!(monitor_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(dataset_deficit, m)?)?;
     m.add_function(wrap_pyfunction!(dataset_import, m)?)?;
     m.add_function(wrap_pyfunction!(dataset_evaluate, m)?)?;

@@ -6,6 +6,13 @@
 //! your own tools): [`OddSpec::to_json`] writes it and [`OddSpec::from_json`] reads it back,
 //! checking its kind, its schema version and its numbers.
 //!
+//! Each entry holds the headline threshold (the analysis's ODD family, `axis` /
+//! `sigma_star`) and, in [`OddEntry::thresholds`], the threshold of every perturbation family
+//! the pairs table tested (`gaussian_noise`, `darken`, `brighten`, `fog`, …), so a runtime
+//! monitor has an envelope for each condition it estimates. Files written before that field
+//! existed read as entries with an empty list; [`OddEntry::axis_thresholds`] then gives the
+//! headline threshold alone.
+//!
 //! ```
 //! use fogline_types::odd::{OddEntry, OddSpec};
 //!
@@ -87,6 +94,102 @@ pub struct OddEntry {
     pub accepted: Option<bool>,
     /// Why (not) accepted.
     pub acceptance_reason: Option<String>,
+    /// The threshold on every axis the analysis had (one per perturbation family; brightness
+    /// splits into `darken` and `brighten`), at the same budget; the headline axis is among
+    /// them. Empty in files written before this field existed (read them through
+    /// [`OddEntry::axis_thresholds`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub thresholds: Vec<AxisThreshold>,
+}
+
+/// The threshold of one scenario on one severity axis (a perturbation family).
+///
+/// A level is *inside* the envelope when it is no more severe than `sigma_star`: for an
+/// ascending axis (`gaussian_noise` σ, `fog` α, `brighten` gain) when level ≤ σ*, for a
+/// descending one (`darken`: the gain falls as it gets worse) when level ≥ σ*. With
+/// `sigma_star` none (the smallest tested level already fails) only `identity_level` is
+/// known to be inside.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AxisThreshold {
+    /// The axis (`gaussian_noise`, `darken`, `brighten`, `fog`, or a family of your own).
+    pub axis: String,
+    /// The perturbation family it belongs to (`brightness` for `darken` and `brighten`).
+    pub family: String,
+    /// True when severity grows as the level falls (`darken`).
+    pub descending: bool,
+    /// The level at which the family leaves a frame unchanged (σ 0, gain 1, α 0).
+    pub identity_level: f64,
+    /// The levels the analysis tested, least severe first.
+    pub levels: Vec<f64>,
+    /// σ*(s) on this axis (None = none: the least severe level fails).
+    pub sigma_star: Option<f64>,
+    /// Right-censored threshold (no tested level fails).
+    pub right_censored: bool,
+    /// Bootstrap CI of σ* (a null bound means none).
+    pub ci95: Option<[Option<f64>; 2]>,
+    /// `tight`, `match`, `loose`, or `undefined` (against the all-clips aggregate).
+    pub threshold_group: String,
+}
+
+impl AxisThreshold {
+    /// The last level known to be inside the envelope: σ*, or the identity level when σ*
+    /// is none.
+    pub fn limit(&self) -> f64 {
+        self.sigma_star.unwrap_or(self.identity_level)
+    }
+
+    /// Whether `level` is inside the envelope on this axis (no more severe than
+    /// [`AxisThreshold::limit`]).
+    ///
+    /// ```
+    /// use fogline_types::odd::AxisThreshold;
+    /// let darken = AxisThreshold {
+    ///     axis: "darken".into(), family: "brightness".into(), descending: true,
+    ///     identity_level: 1.0, levels: vec![0.7, 0.4], sigma_star: Some(0.7),
+    ///     right_censored: false, ci95: None, threshold_group: "match".into(),
+    /// };
+    /// assert!(darken.inside(0.8) && darken.inside(0.7) && !darken.inside(0.5));
+    /// ```
+    pub fn inside(&self, level: f64) -> bool {
+        if self.descending {
+            level >= self.limit()
+        } else {
+            level <= self.limit()
+        }
+    }
+}
+
+impl OddEntry {
+    /// The thresholds of every axis: [`OddEntry::thresholds`], or for a file written before
+    /// that field existed, the headline threshold alone (`axis`, `sigma_star`; its direction
+    /// and identity level from the axis name: `darken` descends from 1, `brighten` ascends
+    /// from 1, any other axis ascends from 0).
+    pub fn axis_thresholds(&self) -> Vec<AxisThreshold> {
+        if !self.thresholds.is_empty() {
+            return self.thresholds.clone();
+        }
+        let (family, descending, identity_level) = match self.axis.as_str() {
+            "darken" => ("brightness", true, 1.0),
+            "brighten" => ("brightness", false, 1.0),
+            other => (other, false, 0.0),
+        };
+        vec![AxisThreshold {
+            axis: self.axis.clone(),
+            family: family.into(),
+            descending,
+            identity_level,
+            levels: Vec::new(),
+            sigma_star: self.sigma_star,
+            right_censored: self.right_censored,
+            ci95: self.ci95,
+            threshold_group: self.threshold_group.clone(),
+        }]
+    }
+
+    /// The threshold on `axis`, if the entry has one ([`OddEntry::axis_thresholds`]).
+    pub fn threshold(&self, axis: &str) -> Option<AxisThreshold> {
+        self.axis_thresholds().into_iter().find(|t| t.axis == axis)
+    }
 }
 
 /// Why an `odd.json` could not be read.
@@ -204,6 +307,24 @@ impl OddSpec {
             if !(e.budget.is_finite() && e.budget > 0.0) {
                 return Err(at("budget must be a positive number"));
             }
+            for (j, t) in e.thresholds.iter().enumerate() {
+                let at = |what: &str| at(&format!("thresholds[{j}] ({}): {what}", t.axis));
+                if t.axis.is_empty() {
+                    return Err(at("axis must not be empty"));
+                }
+                if e.thresholds[..j].iter().any(|u| u.axis == t.axis) {
+                    return Err(at("axis is listed twice"));
+                }
+                if !(t.identity_level.is_finite() && t.identity_level >= 0.0) {
+                    return Err(at("identity_level must be a non-negative number"));
+                }
+                if !t.levels.iter().all(|l| l.is_finite() && *l >= 0.0) {
+                    return Err(at("levels must be non-negative numbers"));
+                }
+                if t.sigma_star.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
+                    return Err(at("sigma_star must be a non-negative number"));
+                }
+            }
         }
         Ok(())
     }
@@ -232,7 +353,81 @@ mod tests {
             quadrant: "tight + severe".into(),
             accepted: None,
             acceptance_reason: None,
+            thresholds: Vec::new(),
         }
+    }
+
+    fn axis(axis: &str, descending: bool, identity: f64, sigma: Option<f64>) -> AxisThreshold {
+        AxisThreshold {
+            axis: axis.into(),
+            family: if axis.ends_with("en") {
+                "brightness".into()
+            } else {
+                axis.into()
+            },
+            descending,
+            identity_level: identity,
+            levels: vec![0.3, 0.7],
+            sigma_star: sigma,
+            right_censored: false,
+            ci95: None,
+            threshold_group: "match".into(),
+        }
+    }
+
+    /// `odd.json` with a threshold per axis round-trips; a file without them (written
+    /// before they existed) still reads, its headline threshold standing alone; a bad axis
+    /// entry is named.
+    #[test]
+    fn r20_per_axis_thresholds_round_trip_and_old_files_read() {
+        let mut spec = OddSpec::new("fogline 0.1.0", "ab", None, 0.15, "first-violation");
+        let mut e = entry("LANE_KEEPING", Some(30.0), Some(0.2));
+        e.thresholds = vec![
+            axis("gaussian_noise", false, 0.0, Some(30.0)),
+            axis("darken", true, 1.0, Some(0.4)),
+            axis("brighten", false, 1.0, None),
+            axis("fog", false, 0.0, Some(0.3)),
+        ];
+        spec.entries = vec![e, entry("TURN_LEFT", Some(10.0), None)];
+        let text = spec.to_json();
+        let back = OddSpec::from_json(&text).unwrap();
+        assert_eq!(back, spec);
+        let lk = back.entry("LANE_KEEPING").unwrap();
+        assert_eq!(lk.axis_thresholds().len(), 4);
+        let dark = lk.threshold("darken").unwrap();
+        assert!(dark.inside(0.5) && !dark.inside(0.3));
+        let bright = lk.threshold("brighten").unwrap();
+        assert_eq!(bright.limit(), 1.0);
+        assert!(bright.inside(1.0) && !bright.inside(1.1));
+        // The entry without thresholds writes no field (as before) and reads as its
+        // headline axis alone.
+        let old = back.entry("TURN_LEFT").unwrap();
+        let noise = old.axis_thresholds();
+        assert_eq!(noise.len(), 1);
+        assert_eq!(
+            (noise[0].axis.as_str(), noise[0].limit()),
+            ("gaussian_noise", 10.0)
+        );
+        assert!(old.threshold("fog").is_none());
+        let file: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert!(file["entries"][1].get("thresholds").is_none());
+        assert_eq!(file["entries"][0]["thresholds"][1]["axis"], "darken");
+
+        let mut wrong = spec.clone();
+        wrong.entries[0].thresholds[3].sigma_star = Some(-1.0);
+        let msg = OddSpec::from_json(&wrong.to_json())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("entries[0] (LANE_KEEPING): thresholds[3] (fog): sigma_star"),
+            "{msg}"
+        );
+        let mut twice = spec.clone();
+        twice.entries[0].thresholds[1].axis = "gaussian_noise".into();
+        let msg = OddSpec::from_json(&twice.to_json())
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("listed twice"), "{msg}");
     }
 
     #[test]

@@ -672,3 +672,194 @@ fn r20_monitor_estimate_reads_what_perturb_added_and_names_bad_files() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("/no/such/file.png"), "{}", stderr(&o));
 }
+
+/// `fogline monitor run` end to end: an odd.json from `fogline envelope`, frames from
+/// `fogline perturb` and a clip from `fogline world generate`; one JSON line per frame; bad
+/// input is an error naming the file or the field, never a panic.
+#[test]
+fn r20_monitor_run_logs_json_lines_on_frames_and_clips() {
+    let dir = tempfile::tempdir().unwrap();
+    let pairs = dir.path().join("pairs.csv");
+    fogline_envelope::synthetic::write_csv(
+        &fogline_envelope::synthetic::SyntheticParams {
+            n_clips: 240,
+            seed: 4,
+        },
+        &mut std::fs::File::create(&pairs).unwrap(),
+    )
+    .unwrap();
+    let env = dir.path().join("env");
+    let o = fogline(&[
+        "envelope",
+        pairs.to_str().unwrap(),
+        "--out",
+        env.to_str().unwrap(),
+        "--bootstrap",
+        "50",
+        "--restarts",
+        "2",
+        "--k-max",
+        "4",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let odd = env.join("odd.json");
+    let spec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&odd).unwrap()).unwrap();
+    // A scenario whose noise limit is below 50 (σ* none counts as 0).
+    let entry = spec["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["sigma_star"].as_f64().unwrap_or(0.0) < 50.0)
+        .expect("a scenario with a noise threshold below 50");
+    let scenario = entry["scenario"].as_str().unwrap();
+    assert!(
+        entry["thresholds"].as_array().unwrap().len() >= 3,
+        "{entry}"
+    );
+
+    let input = dir.path().join("in");
+    write_smooth(&input.join("a.png"));
+    // Three noisy frames (distinct draws: a repeated frame is a camera fault).
+    let mut noisy = Vec::new();
+    for seed in ["1", "2", "3"] {
+        let out = dir.path().join(format!("noisy{seed}"));
+        let o = fogline(&[
+            "perturb",
+            "--input",
+            input.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
+            "--condition",
+            "noise_70",
+            "--seed",
+            seed,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        noisy.push(out.join("a.png").to_str().unwrap().to_string());
+    }
+    let a = input.join("a.png");
+    let (a, odd_s) = (a.to_str().unwrap(), odd.to_str().unwrap());
+    let (n1, n2, n3) = (noisy[0].as_str(), noisy[1].as_str(), noisy[2].as_str());
+    let run = |extra: &[&str]| {
+        let mut args = vec!["monitor", "run"];
+        args.extend(extra);
+        fogline(&args)
+    };
+    let o = run(&[
+        a,
+        n1,
+        n2,
+        n3,
+        n3,
+        n3,
+        "--odd",
+        odd_s,
+        "--scenario",
+        scenario,
+        "--axes",
+        "gaussian_noise",
+        "--min-dwell-steps",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 6);
+    assert_eq!(rows[0]["in_envelope"], true, "{}", rows[0]);
+    assert_eq!(rows[0]["source"], a);
+    // σ 70 three times: the average passes any limit below 50 (+ the margin).
+    assert_eq!(rows[3]["in_envelope"], false, "{}", rows[3]);
+    assert_eq!(rows[3]["source"], n3);
+    assert_eq!(rows[3]["quadrant"], entry["quadrant"]);
+    assert!(
+        rows[3]["reason"]
+            .as_str()
+            .unwrap()
+            .contains("gaussian_noise"),
+        "{}",
+        rows[3]
+    );
+    assert_eq!(rows[3]["axes"][0]["axis"], "gaussian_noise");
+    // The same frame again is a dropped frame, and a third time a frozen camera.
+    assert_eq!(rows[4]["fault"], "dropped", "{}", rows[4]);
+    assert_eq!(rows[5]["fault"], "frozen", "{}", rows[5]);
+    assert_eq!(rows[5]["reason"], "camera fault: frozen frame");
+    assert!(
+        stderr(&o).contains("monitor: 6 frames in 1 streams"),
+        "{}",
+        stderr(&o)
+    );
+
+    // A clip: its own scenario label, the front-wide camera's four frames.
+    let clips = dir.path().join("clips");
+    let o = fogline(&[
+        "world",
+        "generate",
+        "--out",
+        clips.to_str().unwrap(),
+        "--clips",
+        "1",
+        "--scenario",
+        "LANE_KEEPING",
+        "--width",
+        "128",
+        "--height",
+        "72",
+        "--no-depth",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(&[clips.to_str().unwrap(), "--odd", odd_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 4);
+    assert!(rows.iter().all(|r| r["scenario"] == "LANE_KEEPING"));
+    assert!(
+        rows[3]["source"]
+            .as_str()
+            .unwrap()
+            .ends_with("camera_front_wide_120fov/frame_3.png"),
+        "{}",
+        rows[3]
+    );
+
+    // Errors: images without a scenario, an unknown scenario, a file that is not an
+    // odd.json, a missing frame (the other stream still runs).
+    let o = run(&[a, "--odd", odd_s]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("images need --scenario"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(&[a, "--odd", odd_s, "--scenario", "PARKING"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("no entry for scenario \"PARKING\""),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(&[a, "--odd", pairs.to_str().unwrap(), "--scenario", scenario]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("pairs.csv"), "{}", stderr(&o));
+    let o = run(&[
+        "/no/such/frame.png",
+        clips.to_str().unwrap(),
+        "--odd",
+        odd_s,
+        "--scenario",
+        scenario,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("/no/such/frame.png"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    assert_eq!(String::from_utf8_lossy(&o.stdout).lines().count(), 4);
+    let o = run(&[a, "--odd", odd_s, "--scenario", scenario, "--axes", "blur"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("axes"), "{}", stderr(&o));
+}

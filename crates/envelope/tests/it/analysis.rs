@@ -438,6 +438,32 @@ fn the_odd_specification_round_trips() {
     let file: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(file["entries"], odd_rows);
     assert_eq!(file["kind"], "fogline.odd");
+    // r20: every entry has a threshold per axis (family), equal to the envelope's
+    // threshold table at the headline budget; darken descends from gain 1.
+    for e in &back.entries {
+        let axes: Vec<&str> = e.thresholds.iter().map(|t| t.axis.as_str()).collect();
+        let want: Vec<&str> = env.axes.iter().map(|a| a.axis.as_str()).collect();
+        assert_eq!(axes, want, "{}", e.scenario);
+        assert!(want.len() >= 3, "{want:?}");
+        for t in &e.thresholds {
+            let th = env
+                .thresholds
+                .iter()
+                .find(|x| {
+                    x.scenario == e.scenario && x.axis == t.axis && x.budget == p.headline_budget
+                })
+                .unwrap();
+            assert_eq!(
+                (t.sigma_star, t.right_censored),
+                (th.sigma_star, th.right_censored)
+            );
+            assert_eq!(t.descending, t.axis == "darken");
+            let id = if t.family == "brightness" { 1.0 } else { 0.0 };
+            assert_eq!(t.identity_level, id, "{}", t.axis);
+        }
+        let headline = e.threshold(&e.axis).unwrap();
+        assert_eq!(headline.sigma_star, e.sigma_star);
+    }
 }
 
 /// `envelope.json` reads back into the model: writing the read-back envelope gives the same

@@ -17,7 +17,7 @@ The user guide is ``docs/python.md`` in the repository.
 
 from ._fogline import __version__, condition_name, stream_key
 from ._fogline import perturb as _perturb
-from . import dataset, envelope, planner, rco, world
+from . import dataset, envelope, monitor, planner, rco, world
 from .transforms import AlbuPerturb, Perturb
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "AlbuPerturb",
     "dataset",
     "envelope",
+    "monitor",
     "rco",
     "world",
     "planner",

@@ -1,5 +1,6 @@
 from . import dataset as dataset
 from . import envelope as envelope
+from . import monitor as monitor
 from . import planner as planner
 from . import rco as rco
 from . import world as world
