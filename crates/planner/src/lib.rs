@@ -112,17 +112,19 @@ impl ReferencePlanner {
         Ok(detect::Detections { objects, deficits })
     }
 
-    /// Plans knowing which pixels are lost (deficit regions, e.g. from
-    /// [`detect::find_deficits`]): a lamp or a sign read inside a lost region does not count.
-    /// An override that has recognised a deficit drives the planner this way; a planner
-    /// that is not told keeps reading what the pixels show.
+    /// Plans knowing what the frames and the history alone do not say (see
+    /// [`perceive::Knowing`]): which pixels are lost (deficit regions, e.g. from
+    /// [`detect::find_deficits`]: a lamp or a sign read inside a lost region does not count;
+    /// an override that has recognised a deficit drives the planner this way, a planner that
+    /// is not told keeps reading what the pixels show), and the navigation's curvature for a
+    /// car that stands or creeps, whose history has none.
     pub fn plan_knowing(
         &self,
         input: &PlannerInput<'_>,
-        lost: &[perceive::Lost],
+        knowing: &perceive::Knowing<'_>,
     ) -> Result<(Perception, plan::Plan), PlannerError> {
         validate(input)?;
-        let p = perceive::perceive_knowing(input, lost);
+        let p = perceive::perceive_knowing(input, knowing);
         let plan = plan::plan(&p);
         Ok((p, plan))
     }

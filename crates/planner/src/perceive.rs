@@ -313,9 +313,21 @@ fn pose_at(h: &[EgoPose], t: f64) -> Option<[f64; 3]> {
         .next()
 }
 
-fn history_motion(h: &[EgoPose]) -> (f64, f64) {
+/// Speed and the curvature of the path ahead: the history's, or the navigation's where the
+/// history is too short to measure one (see [`Knowing::nav_kappa`]).
+fn path_motion(h: &[EgoPose], nav_kappa: Option<f64>) -> (f64, f64) {
+    let (speed, kappa, measured) = history_motion(h);
+    match nav_kappa {
+        Some(k) if !measured && k.is_finite() => (speed, k),
+        _ => (speed, kappa),
+    }
+}
+
+/// Speed, path curvature and whether the curvature was measured (over more than 2 m of
+/// path; else it is 0).
+fn history_motion(h: &[EgoPose]) -> (f64, f64, bool) {
     let Some(last) = h.last() else {
-        return (0.0, 0.0);
+        return (0.0, 0.0, false);
     };
     let mut len = 0.0;
     for w in h.windows(2) {
@@ -330,12 +342,13 @@ fn history_motion(h: &[EgoPose]) -> (f64, f64) {
         0.0
     };
     let first = &h[0];
-    let kappa = if len > 2.0 {
+    let measured = len > 2.0;
+    let kappa = if measured {
         (last.yaw_rad - first.yaw_rad) / len
     } else {
         0.0
     };
-    (speed, if kappa.is_finite() { kappa } else { 0.0 })
+    (speed, if kappa.is_finite() { kappa } else { 0.0 }, measured)
 }
 
 /// The view of camera `id`'s latest frame, read directly (see [`View::pooled`] for frames
@@ -366,24 +379,35 @@ fn earlier<'a>(
 
 /// Runs every perception step on `input`.
 pub fn perceive(input: &PlannerInput<'_>) -> Perception {
-    perceive_with(input, false, &[])
+    perceive_with(input, false, &Knowing::default())
 }
 
 /// [`perceive`], and the nearest object in the lane to the left as well
 /// ([`Perception::left_object`]; planning does not need it, so [`perceive`] skips it).
 pub fn perceive_objects(input: &PlannerInput<'_>) -> Perception {
-    perceive_with(input, true, &[])
+    perceive_with(input, true, &Knowing::default())
 }
 
 /// A region of one camera's latest frame that the perception knows it lost (a deficit:
 /// [`crate::detect::find_deficits`] finds them), `[x0, y0, x1, y1]` in pixels.
 pub type Lost = (CameraId, [f64; 4]);
 
-/// [`perceive`] knowing which pixels are lost: a lamp or a sign face read inside a lost
-/// region is no reading (a deficit's red outline is not a red lamp). Without lost regions
-/// it equals [`perceive`].
-pub fn perceive_knowing(input: &PlannerInput<'_>, lost: &[Lost]) -> Perception {
-    perceive_with(input, false, lost)
+/// What a driving stack knows besides its frames and its history.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Knowing<'a> {
+    /// The regions of the latest frames known to be lost: a lamp or a sign face read inside
+    /// one is no reading (a deficit's red outline is not a red lamp).
+    pub lost: &'a [Lost],
+    /// The navigation's path curvature, 1/m, left positive (e.g. the arc to the route's
+    /// target point): the lane model's curvature when the history is too short to give one
+    /// (under 2 m of path: a car standing or creeping). A car waiting in a junction to turn
+    /// looks along the arc it is about to drive, not straight at the corner ahead of it.
+    pub nav_kappa: Option<f64>,
+}
+
+/// [`perceive`] knowing what [`Knowing`] holds. With nothing known it equals [`perceive`].
+pub fn perceive_knowing(input: &PlannerInput<'_>, knowing: &Knowing<'_>) -> Perception {
+    perceive_with(input, false, knowing)
 }
 
 /// Whether `(u, v)` of `camera`'s latest frame lies in or next to a lost region: within
@@ -396,8 +420,9 @@ fn in_lost(lost: &[Lost], camera: CameraId, u: f64, v: f64) -> bool {
     })
 }
 
-fn perceive_with(input: &PlannerInput<'_>, left_object: bool, lost: &[Lost]) -> Perception {
-    let (speed, kappa_history) = history_motion(input.ego_history);
+fn perceive_with(input: &PlannerInput<'_>, left_object: bool, knowing: &Knowing<'_>) -> Perception {
+    let lost = knowing.lost;
+    let (speed, kappa_history) = path_motion(input.ego_history, knowing.nav_kappa);
     // A summed-area table pays off only where patches grow large, on noisy frames; clean
     // frames are read through small patches summed directly.
     let latest = |id: CameraId| {
@@ -2111,6 +2136,33 @@ mod tests {
         assert!(fb0.abs() < 2e-3, "heading {fb0}");
         // Too few points on a side: no fit.
         assert!(fit_with_heading(&pts[..4]).is_none());
+    }
+
+    #[test]
+    fn a_standing_car_looks_along_the_navigations_arc_a_moving_one_along_its_own() {
+        let pose = |t_s: f64, x_m: f64, yaw_rad: f64| EgoPose {
+            t_s,
+            x_m,
+            y_m: 0.0,
+            yaw_rad,
+            speed_mps: 0.0,
+        };
+        // Standing: four poses at the origin, no path to measure a curvature on.
+        let standing: Vec<EgoPose> = (0..4)
+            .map(|k| pose(-0.1 * f64::from(3 - k), 0.0, 0.0))
+            .collect();
+        assert_eq!(path_motion(&standing, None).1, 0.0);
+        assert_eq!(path_motion(&standing, Some(-0.125)).1, -0.125);
+        assert_eq!(path_motion(&standing, Some(f64::NAN)).1, 0.0);
+        // Moving 3 m on an arc of curvature 0.02: the history's own curvature stands.
+        let moving: Vec<EgoPose> = (0..4)
+            .map(|k| {
+                let back = f64::from(3 - k);
+                pose(-0.1 * back, -back, -0.02 * back)
+            })
+            .collect();
+        let (_, k) = path_motion(&moving, Some(-0.125));
+        assert!((k - 0.02).abs() < 1e-9, "{k}");
     }
 
     #[test]

@@ -249,6 +249,10 @@ pub struct AgentInput<'a> {
     pub history: &'a [EgoPose],
     /// Game time of the newest frames, s.
     pub time_s: f64,
+    /// The navigation's curvature (the arc to the route point ahead, 1/m, left positive):
+    /// the history carries it in its headings while the car moves; standing, the planner
+    /// gets it this way.
+    pub nav_kappa: f64,
 }
 
 impl Baseline {
@@ -395,7 +399,11 @@ impl Baseline {
         };
         let p = &self.params;
         let cruise = p.cruise_mps.min(turn_cap_mps);
-        let out = self.planner.plan_knowing(&pin, &self.lost);
+        let knowing = fogline_planner::perceive::Knowing {
+            lost: &self.lost,
+            nav_kappa: Some(input.nav_kappa),
+        };
+        let out = self.planner.plan_knowing(&pin, &knowing);
         if let Some(driver) = &self.driver {
             // The reference perception is the override's detector here, not the driver.
             self.objects = match &out {

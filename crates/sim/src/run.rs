@@ -547,8 +547,10 @@ pub fn run_route_with(
             }
             parts[0] += clock.elapsed().as_secs_f64();
             // Take-over is decided from pixels: a lost region (black, red outline) in the
-            // override's front view, or, once in control, in any of its views. While in
-            // control, the override tells the agent which regions of its frames are lost.
+            // override's front view, or, once in control, in any of its views. Whoever
+            // drives, the override tells the agent which regions of its frames are lost (a
+            // walker masked far ahead in the tele view does not hand over, but its outline
+            // is no red lamp either).
             let mut present = false;
             if rco.is_some() {
                 let clock = Instant::now();
@@ -571,7 +573,7 @@ pub fn run_route_with(
                 if present && log::log_enabled!(log::Level::Trace) {
                     log::trace!("lost t {t:.1}: {lost:?}");
                 }
-                agent.set_lost(if present { lost } else { Vec::new() });
+                agent.set_lost(lost);
                 parts[2] += clock.elapsed().as_secs_f64();
             }
             // The agent plans on its frames at every step, whoever drives: while the
@@ -579,7 +581,8 @@ pub fn run_route_with(
             // it sees, and the override's command only ever makes it more cautious.
             {
                 let clock = Instant::now();
-                let hist = rig_history(&history, speed_scale, route_kappa(route, route_s, &ego));
+                let nav_kappa = route_kappa(route, route_s, &ego);
+                let hist = rig_history(&history, speed_scale, nav_kappa);
                 let turn_cap = turn_cap(route, route_s, &params.agent);
                 let cams = vec![
                     CameraInput {
@@ -596,6 +599,7 @@ pub fn run_route_with(
                         cameras: cams,
                         history: &hist,
                         time_s: t,
+                        nav_kappa,
                     },
                     ego.speed_mps,
                     turn_cap,
