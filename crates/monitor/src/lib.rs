@@ -99,7 +99,8 @@ pub use condition::{
 };
 pub use noise::{NoiseEstimate, estimate_noise, estimate_noise_precise};
 pub use runtime::{
-    AxisReading, ESTIMATED_AXES, Monitor, MonitorParams, MonitorRecord, Observation,
+    AxisReading, ESTIMATED_AXES, Monitor, MonitorParams, MonitorRecord, NullAxis, NullProfile,
+    Observation,
 };
 pub use temporal::{TemporalMonitor, TemporalParams, TemporalReading};
 
