@@ -8,6 +8,7 @@ mod backend_args;
 mod bench_campaign;
 mod campaign_cmd;
 mod dataset_cmd;
+mod guard_cmd;
 mod monitor_cmd;
 mod perturb_cmd;
 mod planner_cmd;
@@ -91,6 +92,11 @@ enum Command {
         after_help = "Examples:\n  fogline serve egodriver --addr 127.0.0.1:50051\n  fogline serve http --addr 127.0.0.1:8080"
     )]
     Serve(serve_cmd::ServeArgs),
+    /// Guard an egodriver driver: monitor every frame against odd.json, answer with the RCO out of the envelope.
+    #[command(
+        after_help = "Examples:\n  fogline guard --driver http://127.0.0.1:50051 --odd fogline-demo/odd.json --scenario LANE_KEEPING --log guard.jsonl"
+    )]
+    Guard(guard_cmd::GuardArgs),
     /// Write the self-contained HTML report (figures and tables) of an envelope directory.
     #[command(
         after_help = "Examples:\n  fogline report envelope/ --out report.html\n  fogline report fogline-demo/\n  fogline report envelope/ --sim closed-loop/ --out report.html"
@@ -239,6 +245,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Planner(a) => planner_cmd::planner(a),
         Command::Monitor(a) => monitor_cmd::monitor(a),
         Command::Serve(a) => serve_cmd::serve(a),
+        Command::Guard(a) => guard_cmd::guard(a),
         Command::Campaign(a) => campaign_cmd::campaign(a),
         Command::Dataset(a) => dataset_cmd::dataset(a),
         Command::Rco(a) => rco_cmd::rco(a),

@@ -88,6 +88,9 @@ enum BenchCommand {
         after_help = "Examples:\n  fogline demo --no-closed-loop --out fogline-demo\n  fogline bench monitor-eval --odd fogline-demo/odd.json\n  fogline bench monitor-eval --odd fogline-demo/odd.json --seed 1 --json"
     )]
     MonitorEval(fogline_bench::monitor_eval::MonitorEval),
+    /// The latency fogline guard adds per drive call (median, p99), on live frames over loopback.
+    #[command(after_help = "Examples:\n  fogline bench guard\n  fogline bench guard --json")]
+    Guard(fogline_bench::guard::GuardBench),
 }
 
 #[derive(Args)]
@@ -179,6 +182,9 @@ pub fn bench(a: BenchArgs) -> Result<ExitCode> {
         BenchCommand::MonitorEval(m) => {
             fogline_bench::monitor_eval::run(&m, &mut std::io::stdout().lock())
                 .map(|()| ExitCode::SUCCESS)
+        }
+        BenchCommand::Guard(g) => {
+            fogline_bench::guard::run(&g, &mut std::io::stdout().lock()).map(|()| ExitCode::SUCCESS)
         }
     }
 }

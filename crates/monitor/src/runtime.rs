@@ -226,9 +226,8 @@ impl NullAxis {
 
     fn validate(&self) -> Result<(), MonitorError> {
         let all = [self.center, self.sd, self.lower, self.upper];
-        if !all.iter().all(|v| v.is_finite() && *v >= 0.0)
-            || !(self.lower <= self.center && self.center <= self.upper)
-        {
+        let ordered = self.lower <= self.center && self.center <= self.upper;
+        if !(all.iter().all(|v| v.is_finite() && *v >= 0.0) && ordered) {
             return Err(MonitorError::Params {
                 what: "null",
                 expected: "finite, non-negative center, sd, lower, upper with lower ≤ center ≤ upper",
@@ -1071,20 +1070,21 @@ mod tests {
         let r = m.step(&clean).unwrap();
         assert!(r.in_envelope, "{r:?}");
         let dark = r.axes.iter().find(|a| a.axis == "darken").unwrap();
-        assert_eq!((dark.test.as_str(), dark.limit), ("nominal", null.gain.lower));
+        assert_eq!(
+            (dark.test.as_str(), dark.limit),
+            ("nominal", null.gain.lower)
+        );
         assert_eq!(dark.bound, 0.85);
         let fog = r.axes.iter().find(|a| a.axis == "fog").unwrap();
         assert_eq!(fog.test, "limit");
         // 0.16 + 1.645 · 0.0639 < 0.3 (the model error would give 0.16 + 0.148 > 0.3).
-        assert!((fog.bound - (0.16 + 1.645 * null.fog.sd)).abs() < 1e-12, "{fog:?}");
+        assert!(
+            (fog.bound - (0.16 + 1.645 * null.fog.sd)).abs() < 1e-12,
+            "{fog:?}"
+        );
         // A camera at gain 0.5 reads below its clean frames' 1 % quantile: out.
         let mut m = Monitor::new(&o, "A", p.clone()).unwrap();
-        let r = m
-            .step(&Observation {
-                gain: 0.5,
-                ..clean
-            })
-            .unwrap();
+        let r = m.step(&Observation { gain: 0.5, ..clean }).unwrap();
         assert!(!r.in_envelope, "{r:?}");
         assert!(r.reason.contains("darken 0.500 < 0.594"), "{}", r.reason);
         // Hysteresis on the nominal axis: back in only above lower + margin (and the fog

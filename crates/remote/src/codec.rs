@@ -77,6 +77,21 @@ pub(crate) fn decode_sized(
     Ok(d)
 }
 
+/// [`decode`] for an image of at most `max_pixels` pixels, read from its header before
+/// anything is allocated for it.
+pub(crate) fn decode_capped(bytes: &[u8], max_pixels: u64) -> Result<Decoded, String> {
+    let format = png_or_jpeg(bytes)?;
+    let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(|e| format!("cannot read the {format:?} image's header: {e}"))?;
+    if u64::from(w) * u64::from(h) > max_pixels {
+        return Err(format!(
+            "the image is {w}x{h}, more than the limit of {max_pixels} pixels"
+        ));
+    }
+    decode(bytes)
+}
+
 /// Work below this many bytes is not worth a thread.
 const PARALLEL_BYTES: usize = 1 << 20;
 

@@ -26,3 +26,25 @@ pub use serving::{Limits, ServerHandle};
 pub use fogline_io::ImageFormat;
 
 pub use fogline_types::planner::{FailureKind, PlanFailure, PlanRequest, Planner};
+
+/// A decoded camera frame: RGB8 row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecodedFrame {
+    /// Width, px.
+    pub width: u32,
+    /// Height, px.
+    pub height: u32,
+    /// `width × height × 3` bytes.
+    pub rgb: Vec<u8>,
+}
+
+/// Decodes a PNG or JPEG camera frame (as the egodriver contract carries them) to RGB8,
+/// refusing from its header alone an image of more than `max_pixels` pixels.
+pub fn decode_frame(bytes: &[u8], max_pixels: u64) -> Result<DecodedFrame, String> {
+    let d = codec::decode_capped(bytes, max_pixels)?;
+    Ok(DecodedFrame {
+        width: d.width,
+        height: d.height,
+        rgb: d.rgb,
+    })
+}

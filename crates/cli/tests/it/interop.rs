@@ -511,3 +511,147 @@ fn fogline_sim_run_is_driven_by_a_planner_behind_an_endpoint() {
     assert_eq!(o.status.code(), Some(2), "{}", super::text(&o));
     assert!(super::text(&o).contains("--planner"), "{}", super::text(&o));
 }
+
+/// A permissive `odd.json` with one LANE_KEEPING entry (σ* 70, darken 0.4, brighten 1.6,
+/// fog 0.7).
+pub(crate) fn guard_odd(dir: &std::path::Path) -> PathBuf {
+    let axis = |name: &str, sigma: f64, descending: bool, identity: f64| {
+        serde_json::json!({
+            "axis": name, "family": if name == "darken" || name == "brighten" { "brightness" } else { name },
+            "descending": descending, "identity_level": identity, "levels": [], "sigma_star": sigma,
+            "right_censored": false, "ci95": null, "threshold_group": "match",
+        })
+    };
+    let odd = serde_json::json!({
+        "schema_version": 1, "kind": "fogline.odd", "generated_by": "test", "input_sha256": "00",
+        "axis": "gaussian_noise", "budget": 0.15, "rule": "first-violation", "high_bands": [],
+        "pi_star": null, "sigma_op": null,
+        "entries": [{
+            "scenario": "LANE_KEEPING", "rank": 1, "n_clips": 40, "n_changed": 5, "pilot": false,
+            "axis": "gaussian_noise", "budget": 0.15, "sigma_star": 70.0,
+            "right_censored": false, "ci95": null, "p_high": 0.2, "threshold_group": "match",
+            "severity_group": "mild", "quadrant": "match + mild", "accepted": null,
+            "acceptance_reason": null,
+            "thresholds": [axis("gaussian_noise", 70.0, false, 0.0), axis("darken", 0.4, true, 1.0),
+                           axis("brighten", 1.6, false, 1.0), axis("fog", 0.7, false, 0.0)],
+        }],
+    });
+    let path = dir.join("odd.json");
+    std::fs::write(&path, serde_json::to_vec(&odd).unwrap()).unwrap();
+    path
+}
+
+/// Issue 20, item 3: carla-driver-interface's client loop drives `fogline guard` in front
+/// of `fogline serve egodriver`; the driver is killed mid-route and the guard keeps
+/// answering every `drive` (a safe stop or the RCO's override), then the route completes.
+#[test]
+fn r20_carla_driver_interface_drives_through_fogline_guard_and_survives_the_driver() {
+    let python = python();
+    let dir = std::env::temp_dir().join(format!("fogline-guard-it-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let odd = guard_odd(&dir);
+    let log = dir.join("guard.jsonl");
+    let (mut driver, driver_addr) = fogline_serve("egodriver");
+    let mut guard = ChildGuard::spawn(
+        Command::new(env!("CARGO_BIN_EXE_fogline"))
+            .args([
+                "guard",
+                "--addr",
+                "127.0.0.1:0",
+                "--scenario",
+                "LANE_KEEPING",
+            ])
+            .arg("--driver")
+            .arg(format!("http://{driver_addr}"))
+            .arg("--odd")
+            .arg(&odd)
+            .arg("--log")
+            .arg(&log)
+            .args(["--driver-timeout-ms", "500"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit()),
+        "fogline guard",
+    );
+    let stdout = guard.child.stdout.take().unwrap();
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line).unwrap();
+    let guard_addr: SocketAddr = line
+        .strip_prefix("listening on ")
+        .and_then(|r| r.strip_suffix(" (guard)\n"))
+        .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+        .parse()
+        .unwrap();
+    let steps = 60;
+    let mut demo = ChildGuard::spawn(
+        Command::new(&python)
+            .args(["-m", "carla_driver_interface.cli", "demo", "--driver"])
+            .arg(guard_addr.to_string())
+            .args(["--steps", &steps.to_string()])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
+        "carla-driver-interface demo",
+    );
+    // Kill the driver once the guard has passed on some of its answers.
+    let count = |log: &std::path::Path| {
+        std::fs::read_to_string(log)
+            .map(|t| t.lines().count())
+            .unwrap_or(0)
+    };
+    let start = Instant::now();
+    while count(&log) < 15 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "the guard logged no drive calls"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = driver.child.kill();
+    let _ = driver.child.wait();
+    let killed_at = count(&log);
+    let mut out = String::new();
+    let mut stdout = demo.child.stdout.take().unwrap();
+    let mut stderr = demo.child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut e = String::new();
+        let _ = stderr.read_to_string(&mut e);
+        e
+    });
+    stdout.read_to_string(&mut out).unwrap();
+    let status = demo.wait_for(Duration::from_secs(180));
+    let err = reader.join().unwrap();
+    assert!(status.success(), "demo failed ({status}):\n{out}\n{err}");
+    let done = out
+        .lines()
+        .find(|l| l.starts_with("steps"))
+        .unwrap_or_else(|| panic!("no steps line:\n{out}"));
+    assert_eq!(done.split(':').nth(1).map(str::trim), Some("60"), "{out}");
+    guard.assert_running();
+    let records: Vec<serde_json::Value> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(records.len(), steps, "one record per drive call");
+    let source = |r: &serde_json::Value| r["source"].as_str().unwrap().to_string();
+    assert!(
+        records[..killed_at.saturating_sub(1)]
+            .iter()
+            .any(|r| source(r) == "driver"),
+        "the driver answered before it was killed"
+    );
+    let after: Vec<String> = records[killed_at + 1..].iter().map(source).collect();
+    assert!(
+        !after.is_empty() && after.iter().all(|s| s == "safe_stop" || s == "override"),
+        "after the kill the guard answers: {after:?}"
+    );
+    println!(
+        "guard: {} drive calls, {} by the driver before the kill, then {} by the guard ({})",
+        records.len(),
+        records.iter().filter(|r| source(r) == "driver").count(),
+        after.len(),
+        after.first().cloned().unwrap_or_default()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -2,7 +2,10 @@
 //! 2,000 idle connections (half of them with half a request sent), then 16 concurrent
 //! requests at the documented size caps, then a normal request. The server must answer the
 //! normal request, and its peak resident memory (`VmHWM`) must stay within 1 GB. The figures
-//! are printed (`cargo nextest run -p fogline-cli serve_load --no-capture`).
+//! are printed (`cargo nextest run -p fogline-cli serve_load --no-capture`). The same load
+//! goes through `fogline guard` in front of `fogline serve egodriver` (issue 20): 16
+//! concurrent sessions through the guard, which must answer every one and the normal request,
+//! within the same memory bound.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -35,8 +38,33 @@ impl Drop for Server {
 }
 
 fn start(protocol: &str) -> Server {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_fogline"))
-        .args(["-q", "serve", protocol, "--addr", "127.0.0.1:0"])
+    spawn(Command::new(env!("CARGO_BIN_EXE_fogline")).args([
+        "-q",
+        "serve",
+        protocol,
+        "--addr",
+        "127.0.0.1:0",
+    ]))
+}
+
+/// `fogline guard` in front of the egodriver driver at `driver`, with a permissive
+/// `odd.json` in `dir`.
+fn start_guard(driver: SocketAddr, dir: &std::path::Path) -> Server {
+    let odd = crate::interop::guard_odd(dir);
+    spawn(
+        Command::new(env!("CARGO_BIN_EXE_fogline"))
+            .args(["-q", "guard", "--addr", "127.0.0.1:0", "--scenario"])
+            .arg("LANE_KEEPING")
+            .arg("--driver")
+            .arg(format!("http://{driver}"))
+            .arg("--odd")
+            .arg(odd)
+            .args(["--driver-timeout-ms", "120000"]),
+    )
+}
+
+fn spawn(command: &mut Command) -> Server {
+    let mut child = command
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -203,12 +231,18 @@ fn client(protocol: &str, addr: SocketAddr, timeout_s: u64) -> Box<dyn Planner> 
 }
 
 fn run_load(protocol: &str) {
+    let server = start(protocol);
+    load(protocol, &server, None);
+}
+
+/// The load of `run_load` on `server` (speaking `protocol`); `driver`, the guarded driver
+/// when `server` is a guard.
+fn load(protocol: &str, server: &Server, driver: Option<&Server>) {
     let n_idle = raise_fd_limit();
     assert!(
         n_idle >= 500,
         "the open-file limit leaves room for {n_idle} connections only"
     );
-    let server = start(protocol);
     let addr = server.addr;
     let clip = normal_clip();
     let history = clip.ego_history.clone();
@@ -265,6 +299,7 @@ fn run_load(protocol: &str) {
     });
     let latency_ms = t.elapsed().as_secs_f64() * 1e3;
     let rss = peak_rss_mb(server.child.id());
+    let driver_rss = driver.and_then(|d| peak_rss_mb(d.child.id()));
     drop(idle);
 
     let mut counts = std::collections::BTreeMap::<String, usize>::new();
@@ -275,8 +310,11 @@ fn run_load(protocol: &str) {
     eprintln!(
         "{protocol}: {n_idle} idle connections in {idle_s:.2} s; {CONCURRENT} concurrent requests \
          at the caps in {burst_s:.1} s: {counts:?}; then a normal request answered in \
-         {latency_ms:.0} ms; peak RSS {} (bound {RSS_BOUND_MB} MB)",
-        rss.map_or("unknown".into(), |r| format!("{r:.0} MB"))
+         {latency_ms:.0} ms; peak RSS {} (bound {RSS_BOUND_MB} MB){}",
+        rss.map_or("unknown".into(), |r| format!("{r:.0} MB")),
+        driver_rss.map_or(String::new(), |r| format!(
+            "; the guarded driver's peak RSS {r:.0} MB"
+        ))
     );
     if let Some(first) = outcomes.iter().find(|o| o.contains("refused")) {
         eprintln!("{protocol}: e.g. {first}");
@@ -298,4 +336,18 @@ fn the_http_server_keeps_answering_under_load_within_its_memory_bound() {
 #[test]
 fn the_egodriver_server_keeps_answering_under_load_within_its_memory_bound() {
     run_load("egodriver");
+}
+
+#[test]
+fn r20_the_guard_keeps_answering_under_load_within_its_memory_bound() {
+    let dir = std::env::temp_dir().join(format!("fogline-guard-load-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let driver = start("egodriver");
+    let guard = start_guard(driver.addr, &dir);
+    load("egodriver through fogline guard", &guard, Some(&driver));
+    // The guard is still up after the load.
+    let mut g = guard;
+    assert!(g.child.try_wait().unwrap().is_none(), "the guard exited");
+    drop(g);
+    let _ = std::fs::remove_dir_all(&dir);
 }

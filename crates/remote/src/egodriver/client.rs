@@ -231,7 +231,7 @@ fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Sessi
     for cam in &input.cameras {
         let c = &cam.calib;
         c.validate().map_err(input_failure)?;
-        cameras.push(declare(c));
+        cameras.push(declare_camera(c));
         let n = cam.frames.len();
         jobs.extend(cam.frames.iter().enumerate().map(|(j, f)| (c, j, n, *f)));
     }
@@ -310,8 +310,8 @@ fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Sessi
 }
 
 /// A camera as `start_session` declares it: pinhole intrinsics, resolution, the
-/// PhysicalAI name, and the optical frame's pose in the rig (revision 2).
-fn declare(c: &CameraCalib) -> AvailableCamera {
+/// PhysicalAI name (its logical id), and the optical frame's pose in the rig (revision 2).
+pub fn declare_camera(c: &CameraCalib) -> AvailableCamera {
     let name = c.id.name().to_string();
     let q = quat_from_matrix(camera_rotation(c, CameraFrame::Optical));
     AvailableCamera {

@@ -19,8 +19,8 @@
 mod client;
 mod server;
 
-pub use client::{Client, ClientOptions};
-pub use server::{ServeOptions, parse_camera_map, serve};
+pub use client::{Client, ClientOptions, declare_camera};
+pub use server::{ServeOptions, parse_camera_map, serve, serve_contract};
 
 pub use crate::{ImageFormat, Limits, ServerHandle};
 

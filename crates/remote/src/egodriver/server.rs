@@ -99,7 +99,6 @@ pub fn serve(
     opts.limits.validate().map_err(io::Error::other)?;
     let runtime = server_runtime("fogline-egodriver")?;
     let listener = runtime.block_on(tokio::net::TcpListener::bind(addr))?;
-    let local = listener.local_addr()?;
     let stop = stop_flag();
     let describe = planner.describe();
     let limits = opts.limits.clone();
@@ -114,6 +113,34 @@ pub fn serve(
             plans: Arc::new(tokio::sync::Semaphore::new(limits.max_concurrent_requests)),
         }),
     };
+    serve_service(runtime, listener, service, &limits, &describe, stop)
+}
+
+/// Serves any implementation of the contract (e.g. `fogline-guard`'s proxy) on `addr`
+/// under `limits`, as [`serve`] serves a planner: the same connection guard, timeouts and
+/// message sizes. The socket is bound before this returns.
+pub fn serve_contract<S: EgodriverService>(
+    addr: SocketAddr,
+    service: S,
+    limits: &Limits,
+    describe: &str,
+) -> io::Result<ServerHandle> {
+    limits.validate().map_err(io::Error::other)?;
+    let runtime = server_runtime("fogline-egodriver")?;
+    let listener = runtime.block_on(tokio::net::TcpListener::bind(addr))?;
+    serve_service(runtime, listener, service, limits, describe, stop_flag())
+}
+
+fn serve_service<S: EgodriverService>(
+    runtime: tokio::runtime::Runtime,
+    listener: tokio::net::TcpListener,
+    service: S,
+    limits: &Limits,
+    describe: &str,
+    stop: StopFlag,
+) -> io::Result<ServerHandle> {
+    let local = listener.local_addr()?;
+    let limits = limits.clone();
     let server = EgodriverServiceServer::new(service)
         .max_decoding_message_size(MAX_MESSAGE_BYTES)
         .max_encoding_message_size(MAX_MESSAGE_BYTES);
