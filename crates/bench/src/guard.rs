@@ -19,14 +19,14 @@
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use anyhow::{Context, Result, bail};
 use fogline_guard::GuardParams;
 use fogline_guard::session::{LoopSession, connect};
 use fogline_remote::Planner;
 use fogline_types::clip::CameraId;
-use fogline_types::odd::{AxisThreshold, OddEntry, OddSpec};
+use fogline_types::odd::OddSpec;
 use serde::Serialize;
 
 /// What `fogline bench guard` runs.
@@ -127,70 +127,6 @@ fn times(direct: &[f64], guarded: &[f64]) -> PathTimes {
     }
 }
 
-fn threshold(axis: &str, limit: f64, descending: bool, identity: f64) -> Result<AxisThreshold> {
-    Ok(serde_json::from_value(serde_json::json!({
-        "axis": axis,
-        "family": if axis == "darken" || axis == "brighten" { "brightness" } else { axis },
-        "descending": descending, "identity_level": identity, "levels": [],
-        "sigma_star": limit, "right_censored": false, "ci95": null,
-        "threshold_group": "match",
-    }))?)
-}
-
-/// The default `odd.json`: one LANE_KEEPING entry (σ* 20, darken 0.4, brighten 1.6, fog 0.7).
-pub fn default_odd() -> Result<OddSpec> {
-    let mut odd = OddSpec::new(
-        "fogline bench guard",
-        "00",
-        Some("gaussian_noise".into()),
-        0.15,
-        "first-violation",
-    );
-    odd.entries.push(OddEntry {
-        scenario: "LANE_KEEPING".into(),
-        rank: Some(1),
-        n_clips: 40,
-        n_changed: 9,
-        pilot: false,
-        axis: "gaussian_noise".into(),
-        budget: 0.15,
-        sigma_star: Some(20.0),
-        right_censored: false,
-        ci95: None,
-        p_high: Some(0.2),
-        threshold_group: "match".into(),
-        severity_group: "mild".into(),
-        quadrant: "match + mild".into(),
-        accepted: None,
-        acceptance_reason: None,
-        thresholds: vec![
-            threshold("gaussian_noise", 20.0, false, 0.0)?,
-            threshold("darken", 0.4, true, 1.0)?,
-            threshold("brighten", 1.6, false, 1.0)?,
-            threshold("fog", 0.7, false, 0.0)?,
-        ],
-    });
-    Ok(odd)
-}
-
-/// The guard's log, kept in memory.
-#[derive(Clone, Default)]
-struct MemLog(Arc<Mutex<Vec<u8>>>);
-
-impl Write for MemLog {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .extend_from_slice(buf);
-        Ok(buf.len())
-    }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
 /// Runs the benchmark.
 pub fn measure(a: &GuardBench) -> Result<GuardBenchReport> {
     if a.calls == 0 || a.clips == 0 {
@@ -198,7 +134,7 @@ pub fn measure(a: &GuardBench) -> Result<GuardBenchReport> {
     }
     let odd = match &a.odd {
         Some(p) => OddSpec::read(p).map_err(anyhow::Error::msg)?,
-        None => default_odd()?,
+        None => fogline_guard::example_odd("fogline bench guard"),
     };
     let cfg = fogline_api::planner_eval::world_config(a.clips, a.seed, a.width, a.height)?;
     let cfg = fogline_world::WorldConfig {
@@ -239,8 +175,8 @@ pub fn measure(a: &GuardBench) -> Result<GuardBenchReport> {
         fogline_remote::egodriver::ServeOptions::default(),
     )
     .context("cannot serve the driver on 127.0.0.1")?;
-    let log = MemLog::default();
-    let sink: fogline_guard::GuardLog = Arc::new(Mutex::new(Box::new(log.clone())));
+    let log = fogline_guard::MemoryLog::default();
+    let sink = log.sink();
     let guard = fogline_guard::guard(
         loopback,
         odd,
@@ -287,12 +223,7 @@ pub fn measure(a: &GuardBench) -> Result<GuardBenchReport> {
     drop(rt); // closes the connections
     guard.shutdown().context("stopping the guard")?;
     driver.shutdown().context("stopping the driver")?;
-    let text = String::from_utf8(
-        log.0
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .clone(),
-    )?;
+    let text = String::from_utf8(log.contents())?;
     let mut answered_by = BTreeMap::new();
     for line in text.lines().skip(a.warmup) {
         let r: fogline_guard::GuardRecord = serde_json::from_str(line)?;

@@ -187,3 +187,89 @@ pub fn guard(
     let describe = service.describe();
     fogline_remote::egodriver::serve_contract(addr, service, &limits, &describe)
 }
+
+/// A one-entry `odd.json` for examples, tests and `fogline bench guard`: LANE_KEEPING with
+/// σ* 20, darken 0.4, brighten 1.6 and fog 0.7 (`generated_by` names who made it).
+pub fn example_odd(generated_by: &str) -> fogline_types::odd::OddSpec {
+    use fogline_types::odd::{AxisThreshold, OddEntry, OddSpec};
+    let threshold = |axis: &str, limit: f64, descending: bool, identity: f64| AxisThreshold {
+        axis: axis.into(),
+        family: if axis == "darken" || axis == "brighten" {
+            "brightness".into()
+        } else {
+            axis.into()
+        },
+        descending,
+        identity_level: identity,
+        levels: Vec::new(),
+        sigma_star: Some(limit),
+        right_censored: false,
+        ci95: None,
+        threshold_group: "match".into(),
+    };
+    let mut odd = OddSpec::new(
+        generated_by,
+        "00",
+        Some("gaussian_noise".into()),
+        0.15,
+        "first-violation",
+    );
+    odd.entries.push(OddEntry {
+        scenario: "LANE_KEEPING".into(),
+        rank: Some(1),
+        n_clips: 40,
+        n_changed: 9,
+        pilot: false,
+        axis: "gaussian_noise".into(),
+        budget: 0.15,
+        sigma_star: Some(20.0),
+        right_censored: false,
+        ci95: None,
+        p_high: Some(0.2),
+        threshold_group: "match".into(),
+        severity_group: "mild".into(),
+        quadrant: "match + mild".into(),
+        accepted: None,
+        acceptance_reason: None,
+        thresholds: vec![
+            threshold("gaussian_noise", 20.0, false, 0.0),
+            threshold("darken", 0.4, true, 1.0),
+            threshold("brighten", 1.6, false, 1.0),
+            threshold("fog", 0.7, false, 0.0),
+        ],
+    });
+    odd
+}
+
+/// A [`GuardLog`] kept in memory, for the benchmark and the tests to read back.
+#[derive(Clone, Default)]
+pub struct MemoryLog(Arc<Mutex<Vec<u8>>>);
+
+impl Write for MemoryLog {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl MemoryLog {
+    /// The log to hand to the guard.
+    pub fn sink(&self) -> GuardLog {
+        Arc::new(Mutex::new(Box::new(self.clone())))
+    }
+
+    /// What was written so far.
+    pub fn contents(&self) -> Vec<u8> {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+    }
+}

@@ -6,14 +6,13 @@
 mod fuzz;
 mod handback;
 
-use std::io::Write;
 use std::net::SocketAddr;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
-use fogline_guard::{GuardLog, GuardParams, GuardRecord};
+use fogline_guard::{GuardLog, GuardParams, GuardRecord, MemoryLog};
 use fogline_remote::{PlanFailure, PlanRequest, Planner, ServerHandle};
 use fogline_types::clip::{CameraCalib, CameraId, Decision, HORIZON, PlannerOutput, Trajectory};
-use fogline_types::odd::{AxisThreshold, OddEntry, OddSpec};
+use fogline_types::odd::OddSpec;
 
 /// The driver: a straight trajectory at 5 m/s, whatever it sees.
 pub(crate) struct Straight;
@@ -48,75 +47,22 @@ pub(crate) fn driver() -> ServerHandle {
     .unwrap()
 }
 
-fn threshold(axis: &str, sigma_star: f64, descending: bool, identity: f64) -> AxisThreshold {
-    serde_json::from_value(serde_json::json!({
-        "axis": axis,
-        "family": if axis == "darken" || axis == "brighten" { "brightness" } else { axis },
-        "descending": descending, "identity_level": identity, "levels": [],
-        "sigma_star": sigma_star, "right_censored": false, "ci95": null,
-        "threshold_group": "match",
-    }))
-    .unwrap()
-}
-
-/// An `odd.json` with one LANE_KEEPING entry: σ* 20, darken 0.4, brighten 1.6, fog 0.7.
+/// The guard crate's example `odd.json`: LANE_KEEPING, σ* 20, darken 0.4, brighten 1.6, fog 0.7.
 pub(crate) fn odd() -> OddSpec {
-    let mut odd = OddSpec::new(
-        "test",
-        "00",
-        Some("gaussian_noise".into()),
-        0.15,
-        "first-violation",
-    );
-    odd.entries.push(OddEntry {
-        scenario: "LANE_KEEPING".into(),
-        rank: Some(1),
-        n_clips: 40,
-        n_changed: 9,
-        pilot: false,
-        axis: "gaussian_noise".into(),
-        budget: 0.15,
-        sigma_star: Some(20.0),
-        right_censored: false,
-        ci95: None,
-        p_high: Some(0.2),
-        threshold_group: "match".into(),
-        severity_group: "mild".into(),
-        quadrant: "match + mild".into(),
-        accepted: None,
-        acceptance_reason: None,
-        thresholds: vec![
-            threshold("gaussian_noise", 20.0, false, 0.0),
-            threshold("darken", 0.4, true, 1.0),
-            threshold("brighten", 1.6, false, 1.0),
-            threshold("fog", 0.7, false, 0.0),
-        ],
-    });
-    odd
+    fogline_guard::example_odd("test")
 }
 
-/// A log kept in memory.
+/// The guard's log, kept in memory.
 #[derive(Clone, Default)]
-pub(crate) struct MemLog(Arc<Mutex<Vec<u8>>>);
-
-impl Write for MemLog {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(buf);
-        Ok(buf.len())
-    }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
+pub(crate) struct MemLog(MemoryLog);
 
 impl MemLog {
     pub(crate) fn sink(&self) -> GuardLog {
-        Arc::new(Mutex::new(Box::new(self.clone())))
+        self.0.sink()
     }
 
     pub(crate) fn records(&self) -> Vec<GuardRecord> {
-        let text = String::from_utf8(self.0.lock().unwrap().clone()).unwrap();
+        let text = String::from_utf8(self.0.contents()).unwrap();
         text.lines()
             .map(|l| serde_json::from_str(l).unwrap())
             .collect()
