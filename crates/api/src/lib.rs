@@ -12,6 +12,7 @@
 //! - [`perturb_dir`]: perturb a directory of frames (`fogline perturb`);
 //! - [`planner_eval`]: the reference planner on generated clips, clean and perturbed
 //!   (`fogline planner eval`);
+//! - [`rco`]: recorded observations through the LLM-RCO controller (`fogline rco replay`);
 //! - [`sim`]: the closed-loop evaluation's run, files and summary (`fogline sim run`);
 //! - [`world`]: a corpus of clips on disk (`fogline world generate`);
 //! - [`in_memory`]: the in-memory API (arrays and tables in, results out) the Python package
@@ -33,6 +34,8 @@ pub mod monitor;
 pub mod perturb_dir;
 #[cfg(feature = "jobs")]
 pub mod planner_eval;
+#[cfg(feature = "jobs")]
+pub mod rco;
 #[cfg(feature = "jobs")]
 pub mod sim;
 #[cfg(feature = "jobs")]

@@ -15,19 +15,22 @@ use fogline_types::planner::Planner;
 
 /// The planner under test that `spec` names, for `fogline sim run --planner`: `builtin`
 /// (the reference planner, followed by its trajectory instead of the baseline's rules),
-/// `http://HOST:PORT[/PREFIX]` (fogline's HTTP/JSON planner contract) or
-/// `egodriver://HOST:PORT` (AlpaSim's egodriver gRPC contract); PNG frames, `timeout_s`
-/// per request.
+/// `http://HOST:PORT[/PREFIX]` or `https://HOST[:PORT][/PREFIX]` (fogline's HTTP/JSON
+/// planner contract; TLS trusts the process's CA certificate file too) or
+/// `egodriver://HOST:PORT` (AlpaSim's egodriver gRPC contract; `egodriver+https://HOST[:PORT]`
+/// over TLS); PNG frames, `timeout_s` per request.
 pub fn planner_at(spec: &str, timeout_s: f64) -> Result<Arc<dyn Planner>> {
     let (kind, endpoint) = if spec == "builtin" {
         ("builtin", None)
-    } else if spec.starts_with("http://") {
+    } else if spec.starts_with("http://") || spec.starts_with("https://") {
         ("http", Some(spec.to_string()))
     } else if let Some(rest) = spec.strip_prefix("egodriver://") {
         ("egodriver", Some(rest.to_string()))
+    } else if let Some(rest) = spec.strip_prefix("egodriver+https://") {
+        ("egodriver", Some(format!("https://{rest}")))
     } else {
         anyhow::bail!(
-            "--planner {spec:?}: expected `builtin`, `http://HOST:PORT` or `egodriver://HOST:PORT`"
+            "--planner {spec:?}: expected `builtin`, `http://HOST:PORT`, `https://HOST[:PORT]`, `egodriver://HOST:PORT` or `egodriver+https://HOST[:PORT]`"
         );
     };
     if !(timeout_s.is_finite() && timeout_s > 0.0) {

@@ -1,4 +1,4 @@
-//! Benchmarks of fogline: the engines behind `fogline bench` ([`perturb`], [`campaign`], [`world`], [`monitor`], [`monitor_eval`], [`guard`]) and `fogline rco bench` ([`rco`]) and
+//! Benchmarks of fogline: the engines behind `fogline bench` ([`perturb`], [`campaign`], [`world`], [`monitor`], [`monitor_eval`], [`guard`], [`embed`]) and `fogline rco bench` ([`rco`]) and
 //! the envelope pipeline against its Python peer (`benches/envelope.rs`, this crate's README).
 //!
 //! Each engine takes its options and writes its report to a writer (the CLI passes stdout).
@@ -12,6 +12,7 @@
 //! ```
 
 pub mod campaign;
+pub mod embed;
 pub mod guard;
 pub mod monitor;
 pub mod monitor_eval;

@@ -197,12 +197,15 @@ pub struct PairCounts {
     pub clean_failed: usize,
     /// Perturbed runs left out because their clean run is not in the store (yet).
     pub clean_missing: usize,
+    /// Pairs with a `coc_cosine` (both runs' explanations embedded).
+    pub with_cosine: usize,
 }
 
 /// The pairs table of `seed`: one row per (clip, perturbed condition) whose perturbed and
 /// clean runs both succeeded — `ade_clean`/`ade_attacked` against the ground truth, `l2` the
-/// Euclidean norm of the stacked xy difference of the two predictions — in the column
-/// contract of `docs/envelope.md`.
+/// Euclidean norm of the stacked xy difference of the two predictions, `coc_cosine` the
+/// cosine similarity of the two explanations' sentence embeddings (empty where either run
+/// has none; [`crate::similarity`]) — in the column contract of `docs/envelope.md`.
 pub fn pairs_table(runs: &[RunRecord], seed: u64) -> (Table, PairCounts) {
     let clean: HashMap<u32, &RunRecord> = runs
         .iter()
@@ -241,11 +244,25 @@ pub fn pairs_table(runs: &[RunRecord], seed: u64) -> (Table, PairCounts) {
         ),
         Outcome::Failed { .. } => (Vec::new(), String::new(), None, f64::NAN),
     };
+    fn embedding(r: &RunRecord) -> Option<&[f32]> {
+        match &r.outcome {
+            Outcome::Ok {
+                embedding: Some(e), ..
+            } => Some(e.as_slice()),
+            _ => None,
+        }
+    }
     let mut fl: HashMap<&str, (String, f64)> = HashMap::new();
     let mut col_s: [Vec<Option<String>>; 9] = Default::default();
     let mut col_f: [Vec<Option<f64>>; 4] = Default::default();
+    let mut cosines = Vec::new();
     let mut seeds = Vec::new();
     for (c, a) in &rows {
+        let cosine = embedding(c)
+            .zip(embedding(a))
+            .map(|(x, y)| fogline_embed::cosine(x, y));
+        counts.with_cosine += usize::from(cosine.is_some());
+        cosines.push(cosine);
         let (tc, ec, dc, adec) = parts(c);
         let (ta, ea, da, adea) = parts(a);
         let (family, level) = fl
@@ -299,6 +316,7 @@ pub fn pairs_table(runs: &[RunRecord], seed: u64) -> (Table, PairCounts) {
             ("l2", Column::F64(l2)),
             ("coc_clean", Column::Str(coc_clean)),
             ("coc_attacked", Column::Str(coc_attacked)),
+            ("coc_cosine", Column::F64(cosines)),
             ("decision_clean", Column::Str(dec_c)),
             ("decision_attacked", Column::Str(dec_a)),
             ("expert_decision", Column::Str(expert)),
@@ -427,17 +445,34 @@ pub struct ExportSummary {
     pub failed: usize,
     /// Per seed: the pair counts.
     pub pairs: Vec<(u64, PairCounts)>,
+    /// Why `coc_cosine` is empty on some pairs, when it is (the model is missing).
+    pub cosine_missing: Option<String>,
 }
 
 /// Writes `runs.{csv,parquet}` and the pairs table into `dir`: `pairs.{csv,parquet}` when the
 /// runs have one seed, `pairs-seed-<S>.{csv,parquet}` per seed otherwise (the envelope
-/// analysis takes one run per clip and condition).
+/// analysis takes one run per clip and condition). Successful runs stored without an
+/// explanation embedding (a store made without the model, or before fogline had one) are
+/// embedded now when the model is found ([`crate::similarity::shared`]).
 pub fn export(
     runs: &[RunRecord],
     dir: &Path,
     formats: Formats,
     timing: bool,
 ) -> Result<ExportSummary, CampaignError> {
+    let mut cosine_missing = None;
+    let runs = if crate::similarity::any_missing(runs) {
+        match crate::similarity::shared() {
+            Ok(e) => crate::similarity::fill_missing(runs, Some(&e)),
+            Err(why) => {
+                cosine_missing = Some(why);
+                std::borrow::Cow::Borrowed(runs)
+            }
+        }
+    } else {
+        std::borrow::Cow::Borrowed(runs)
+    };
+    let runs: &[RunRecord] = &runs;
     std::fs::create_dir_all(dir).map_err(|e| CampaignError::Io {
         path: dir.to_path_buf(),
         source: e,
@@ -448,6 +483,7 @@ pub fn export(
             .iter()
             .filter(|r| matches!(r.outcome, Outcome::Failed { .. }))
             .count(),
+        cosine_missing,
         ..ExportSummary::default()
     };
     let mut seeds: Vec<u64> = runs.iter().map(|r| r.seed).collect();
@@ -520,7 +556,16 @@ impl ExportSummary {
                     c.attacked_failed, c.clean_failed, c.clean_missing
                 )?;
             }
+            if c.pairs > 0 {
+                write!(out, "; coc_cosine on {}", c.with_cosine)?;
+            }
             writeln!(out)?;
+        }
+        if let Some(why) = &s.cosine_missing {
+            writeln!(
+                out,
+                "coc_cosine is empty where runs have no embedding: {why}"
+            )?;
         }
         for f in &s.files {
             writeln!(out, "wrote {}", f.display())?;

@@ -7,6 +7,8 @@
 //! - [`store`]: the crash-safe SQLite store (WAL; one row per run; resume; shards);
 //! - [`merge`]: shard stores merged exactly, and a store's status;
 //! - [`export`]: runs and pairs tables to CSV and Parquet;
+//! - [`similarity`]: explanations embedded with all-MiniLM-L6-v2 (`fogline-embed`) for the
+//!   pairs table's `coc_cosine`, when the model is installed;
 //! - [`builtin`]: the reference planner in-process; [`planner_for`] builds any configured
 //!   planner (built-in, `egodriver` gRPC, HTTP).
 
@@ -16,6 +18,7 @@ pub mod error;
 pub mod export;
 pub mod merge;
 pub mod runner;
+pub mod similarity;
 pub mod store;
 
 use std::sync::Arc;
@@ -82,6 +85,7 @@ pub fn run_options(config: &CampaignConfig, shard: Shard) -> RunOptions {
         retries: config.run.retries,
         backoff: std::time::Duration::from_millis(config.run.backoff_ms),
         per_clip: config.planner.kind == "builtin",
+        embedder: similarity::shared().ok(),
     }
 }
 

@@ -214,6 +214,9 @@ pub struct RunOptions {
     pub backoff: Duration,
     /// One unit per clip (in-process planners) instead of one per run (remote ones).
     pub per_clip: bool,
+    /// Embeds every successful run's explanation (stored with the run; the pairs table's
+    /// `coc_cosine`); `None` leaves runs without embeddings.
+    pub embedder: Option<Arc<fogline_embed::CachedEmbedder>>,
 }
 
 /// Progress reports from [`run`].
@@ -450,6 +453,10 @@ fn run_one(
         Ok(out) => Outcome::Ok {
             ade_m: out.trajectory.ade(&clip.ground_truth),
             fde_m: out.trajectory.fde(&clip.ground_truth),
+            embedding: opts
+                .embedder
+                .as_ref()
+                .map(|e| e.embed(&out.explanation).to_vec()),
             trajectory: out.trajectory.xy,
             explanation: out.explanation,
             decision: out.decision.map(|d| d.name().to_string()),

@@ -5,6 +5,12 @@
 //!
 //! Tables: `meta(key, value)` (schema version, config hash and identity, shard) and `runs`
 //! keyed by `(clip_index, condition_index, seed)`.
+//!
+//! `runs.explanation_embedding` (nullable; a run's explanation as a unit vector of f32, the
+//! sentence embedding of `fogline-embed`) was added after schema version 1 was released: a
+//! store made before it has no such column and reads as runs without embeddings; the column is
+//! added the first time an embedding is written into it. Readers that do not know the column
+//! ignore it, so the schema version stays 1.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -77,6 +83,9 @@ pub enum Outcome {
         ade_m: f64,
         /// FDE against the clip's ground truth, m.
         fde_m: f64,
+        /// The explanation's sentence embedding (unit length; `fogline-embed`), when the
+        /// model was available.
+        embedding: Option<Vec<f32>>,
     },
     /// The run failed after its retries.
     Failed {
@@ -138,6 +147,8 @@ pub struct Store {
     conn: Connection,
     path: PathBuf,
     meta: StoreMeta,
+    /// Whether `runs` has the `explanation_embedding` column (stores made before it do not).
+    has_embeddings: bool,
 }
 
 impl std::fmt::Debug for Store {
@@ -170,6 +181,7 @@ CREATE TABLE runs (
     expert_decision TEXT,
     latency_ms      REAL NOT NULL,
     config_hash     TEXT NOT NULL,
+    explanation_embedding BLOB,
     PRIMARY KEY (clip_index, condition_index, seed)
 ) WITHOUT ROWID;
 ";
@@ -344,11 +356,31 @@ impl Store {
             shard,
             merged,
         };
+        let has_embeddings = Self::has_column(&conn, path, "explanation_embedding")?;
         Ok(Self {
             conn,
             path: path.to_path_buf(),
             meta,
+            has_embeddings,
         })
+    }
+
+    fn has_column(conn: &Connection, path: &Path, column: &str) -> Result<bool, CampaignError> {
+        let mut st = conn
+            .prepare("SELECT name FROM pragma_table_info('runs')")
+            .map_err(Self::sqlite(path))?;
+        let names = st
+            .query_map([], |r| r.get::<_, String>(0))
+            .map_err(Self::sqlite(path))?
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(Self::sqlite(path))?;
+        if names.is_empty() {
+            return Err(Self::store_err(
+                path,
+                "not a fogline campaign store (no runs table)",
+            ));
+        }
+        Ok(names.iter().any(|n| n == column))
     }
 
     /// Opens a store to continue a campaign: the configuration and the shard must be the ones
@@ -428,68 +460,95 @@ impl Store {
     pub fn insert(&mut self, runs: &[RunRecord]) -> Result<(), CampaignError> {
         let path = self.path.clone();
         let hash = self.meta.config_hash.clone();
+        let embeds = runs.iter().any(|r| {
+            matches!(
+                r.outcome,
+                Outcome::Ok {
+                    embedding: Some(_),
+                    ..
+                }
+            )
+        });
         let tx = self.conn.transaction().map_err(Self::sqlite(&path))?;
+        if embeds && !self.has_embeddings {
+            // A store made before the column: add it (nullable; old runs keep NULL).
+            tx.execute_batch("ALTER TABLE runs ADD COLUMN explanation_embedding BLOB")
+                .map_err(Self::sqlite(&path))?;
+        }
         {
+            let embedding_column = if embeds || self.has_embeddings {
+                ", explanation_embedding) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, \
+                 ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19)"
+            } else {
+                ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, \
+                 ?17, ?18)"
+            };
             let mut st = tx
-                .prepare_cached(
+                .prepare_cached(&format!(
                     "INSERT INTO runs (clip_index, condition_index, seed, clip_id, scenario, \
                      condition, status, failure_kind, reason, attempts, decision, explanation, \
-                     ade_m, fde_m, trajectory, expert_decision, latency_ms, config_hash) \
-                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, \
-                     ?16, ?17, ?18)",
-                )
+                     ade_m, fde_m, trajectory, expert_decision, latency_ms, config_hash\
+                     {embedding_column}"
+                ))
                 .map_err(Self::sqlite(&path))?;
             for r in runs {
-                let (status, kind, reason, decision, explanation, ade, fde, traj) = match &r.outcome
-                {
-                    Outcome::Ok {
-                        trajectory,
-                        explanation,
-                        decision,
-                        ade_m,
-                        fde_m,
-                    } => (
-                        "ok",
-                        None,
-                        None,
-                        decision.clone(),
-                        Some(explanation.clone()),
-                        Some(*ade_m),
-                        Some(*fde_m),
-                        Some(encode_trajectory(trajectory)),
-                    ),
-                    Outcome::Failed { kind, reason } => (
-                        "failed",
-                        Some(kind.clone()),
-                        Some(reason.clone()),
-                        None,
-                        None,
-                        None,
-                        None,
-                        None,
-                    ),
-                };
-                st.execute(params![
-                    r.clip_index,
-                    r.condition_index,
-                    r.seed as i64,
-                    r.clip_id,
-                    r.scenario,
-                    r.condition,
-                    status,
-                    kind,
-                    reason,
-                    r.attempts,
-                    decision,
-                    explanation,
-                    ade,
-                    fde,
-                    traj,
-                    r.expert_decision,
-                    r.latency_ms,
-                    hash,
-                ])
-                .map_err(|e| match e {
+                let (status, kind, reason, decision, explanation, ade, fde, traj, emb) =
+                    match &r.outcome {
+                        Outcome::Ok {
+                            trajectory,
+                            explanation,
+                            decision,
+                            ade_m,
+                            fde_m,
+                            embedding,
+                        } => (
+                            "ok",
+                            None,
+                            None,
+                            decision.clone(),
+                            Some(explanation.clone()),
+                            Some(*ade_m),
+                            Some(*fde_m),
+                            Some(encode_trajectory(trajectory)),
+                            embedding.as_deref().map(encode_embedding),
+                        ),
+                        Outcome::Failed { kind, reason } => (
+                            "failed",
+                            Some(kind.clone()),
+                            Some(reason.clone()),
+                            None,
+                            None,
+                            None,
+                            None,
+                            None,
+                            None,
+                        ),
+                    };
+                let seed = r.seed as i64;
+                let mut values: Vec<&dyn rusqlite::ToSql> = vec![
+                    &r.clip_index,
+                    &r.condition_index,
+                    &seed,
+                    &r.clip_id,
+                    &r.scenario,
+                    &r.condition,
+                    &status,
+                    &kind,
+                    &reason,
+                    &r.attempts,
+                    &decision,
+                    &explanation,
+                    &ade,
+                    &fde,
+                    &traj,
+                    &r.expert_decision,
+                    &r.latency_ms,
+                    &hash,
+                ];
+                if embeds || self.has_embeddings {
+                    values.push(&emb);
+                }
+                st.execute(values.as_slice()).map_err(|e| match e {
                     rusqlite::Error::SqliteFailure(f, _)
                         if f.code == rusqlite::ErrorCode::ConstraintViolation =>
                     {
@@ -505,20 +564,28 @@ impl Store {
                 })?;
             }
         }
-        tx.commit().map_err(Self::sqlite(&path))
+        tx.commit().map_err(Self::sqlite(&path))?;
+        self.has_embeddings |= embeds;
+        Ok(())
     }
 
     /// Every run, ordered by clip, condition and seed.
     pub fn runs(&self) -> Result<Vec<RunRecord>, CampaignError> {
         let path = &self.path;
+        // A store made before the embedding column reads as runs without embeddings.
+        let embedding = if self.has_embeddings {
+            "explanation_embedding"
+        } else {
+            "NULL"
+        };
         let mut st = self
             .conn
-            .prepare(
+            .prepare(&format!(
                 "SELECT clip_index, condition_index, seed, clip_id, scenario, condition, status, \
                  failure_kind, reason, attempts, decision, explanation, ade_m, fde_m, \
-                 trajectory, expert_decision, latency_ms, config_hash FROM runs \
-                 ORDER BY clip_index, condition_index, seed",
-            )
+                 trajectory, expert_decision, latency_ms, config_hash, {embedding} FROM runs \
+                 ORDER BY clip_index, condition_index, seed"
+            ))
             .map_err(Self::sqlite(path))?;
         let rows = st
             .query_map([], |r| {
@@ -532,6 +599,9 @@ impl Store {
                         decision: r.get(10)?,
                         ade_m: r.get(12)?,
                         fde_m: r.get(13)?,
+                        embedding: r
+                            .get::<_, Option<Vec<u8>>>(18)?
+                            .map(|b| decode_embedding(&b)),
                     }
                 } else {
                     Outcome::Failed {
@@ -568,6 +638,19 @@ impl Store {
                     ),
                 ));
             }
+            if let Outcome::Ok {
+                embedding: Some(e), ..
+            } = &run.outcome
+                && (e.is_empty() || e.iter().any(|v| !v.is_finite()))
+            {
+                return Err(Self::store_err(
+                    path,
+                    format!(
+                        "run {} × {} × seed {}: a stored explanation embedding is damaged",
+                        run.clip_id, run.condition, run.seed
+                    ),
+                ));
+            }
             if let Outcome::Ok { trajectory, .. } = &run.outcome
                 && (trajectory.len() != fogline_types::clip::HORIZON
                     || trajectory.iter().flatten().any(|v| !v.is_finite()))
@@ -600,6 +683,22 @@ impl Store {
 /// 64 × (x, y) as little-endian f64.
 fn encode_trajectory(t: &[[f64; 2]]) -> Vec<u8> {
     t.iter().flatten().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// An embedding as little-endian f32.
+fn encode_embedding(e: &[f32]) -> Vec<u8> {
+    e.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// The embedding of a blob; a blob whose length is no multiple of 4 decodes to NaN, which
+/// [`Store::runs`] reports as damaged.
+fn decode_embedding(b: &[u8]) -> Vec<f32> {
+    if !b.len().is_multiple_of(4) {
+        return vec![f32::NAN];
+    }
+    b.chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
 }
 
 fn decode_trajectory(b: &[u8]) -> Vec<[f64; 2]> {
@@ -680,6 +779,9 @@ mod tests {
             .map(|i| [i as f64 * 0.1 + 1e-17, -(i as f64) / 3.0])
             .collect();
         assert_eq!(decode_trajectory(&encode_trajectory(&t)), t);
+        let e = vec![0.5f32, -0.25, 1e-7, 0.0];
+        assert_eq!(decode_embedding(&encode_embedding(&e)), e);
+        assert!(decode_embedding(&[0, 0, 0]).iter().all(|v| v.is_nan()));
     }
 
     #[test]

@@ -1,8 +1,9 @@
-//! The override's backend as `fogline rco replay` and `fogline sim run` both take it.
+//! The override's backend as `fogline rco replay`, `fogline rco eval` and `fogline sim run`
+//! take it (a private CA of an https:// URL: the global `--ca-cert`).
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use fogline_rco::OpenAiParams;
+use fogline_rco::{OpenAiParams, StructuredOutput};
 
 /// Who answers the RCO controller's queries.
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -21,7 +22,7 @@ pub enum BackendArg {
 /// The `openai` backend's flags.
 #[derive(Args)]
 pub struct OpenAiArgs {
-    /// openai: the server's base URL (http only).
+    /// openai: the server's base URL, http:// or https://.
     #[arg(long, default_value = "http://127.0.0.1:8000")]
     url: String,
     /// openai: the model name.
@@ -33,6 +34,10 @@ pub struct OpenAiArgs {
     /// openai: the time limit of one call, ms.
     #[arg(long, default_value_t = 20_000)]
     timeout_ms: u64,
+    /// openai: how the answer's JSON schema reaches the server: auto (negotiated),
+    /// json_schema, json_object or prompt.
+    #[arg(long, default_value = "auto", value_parser = |s: &str| StructuredOutput::parse(s).ok_or("expected auto, json_schema, json_object or prompt"))]
+    structured_output: StructuredOutput,
 }
 
 impl OpenAiArgs {
@@ -43,6 +48,7 @@ impl OpenAiArgs {
             model: self.model.clone(),
             api_key_env: self.api_key_env.clone(),
             timeout_ms: self.timeout_ms,
+            structured_output: self.structured_output,
             ..OpenAiParams::default()
         };
         p.parsed_url()

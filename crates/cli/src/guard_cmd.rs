@@ -13,7 +13,8 @@ use fogline_types::odd::OddSpec;
 /// What `fogline guard` runs.
 #[derive(Debug, clap::Args)]
 pub struct GuardArgs {
-    /// The driver to guard: its egodriver address, http://HOST:PORT.
+    /// The driver to guard: its egodriver address, http://HOST:PORT or https://HOST[:PORT]
+    /// (TLS; a private CA with --ca-cert).
     #[arg(long)]
     driver: String,
     /// The envelope's odd.json.

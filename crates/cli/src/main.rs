@@ -44,6 +44,10 @@ struct Cli {
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// https:// endpoints (the LLM backend, remote planners): also trust the CA
+    /// certificates of this PEM file (a private CA).
+    #[arg(long, global = true, value_name = "FILE")]
+    ca_cert: Option<PathBuf>,
     #[command(subcommand)]
     command: Command,
 }
@@ -235,6 +239,10 @@ fn run(cli: Cli) -> Result<ExitCode> {
             .num_threads(n)
             .build_global()
             .context("cannot start the worker threads")?;
+    }
+    if let Some(path) = &cli.ca_cert {
+        fogline_io::http::set_default_ca_cert(Some(path))
+            .with_context(|| format!("--ca-cert {}", path.display()))?;
     }
     match cli.command {
         Command::Envelope(a) => envelope(*a),

@@ -91,6 +91,9 @@ enum BenchCommand {
     /// The latency fogline guard adds per drive call (median, p99), on live frames over loopback.
     #[command(after_help = "Examples:\n  fogline bench guard\n  fogline bench guard --json")]
     Guard(fogline_bench::guard::GuardBench),
+    /// The semantic similarity of two explanations (all-MiniLM-L6-v2 on the CPU): ms per pair.
+    #[command(after_help = "Examples:\n  fogline bench embed\n  fogline bench embed --json")]
+    Embed(fogline_bench::embed::EmbedBench),
 }
 
 #[derive(Args)]
@@ -185,6 +188,9 @@ pub fn bench(a: BenchArgs) -> Result<ExitCode> {
         }
         BenchCommand::Guard(g) => {
             fogline_bench::guard::run(&g, &mut std::io::stdout().lock()).map(|()| ExitCode::SUCCESS)
+        }
+        BenchCommand::Embed(e) => {
+            fogline_bench::embed::run(&e, &mut std::io::stdout().lock()).map(|()| ExitCode::SUCCESS)
         }
     }
 }

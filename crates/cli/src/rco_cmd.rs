@@ -3,15 +3,11 @@
 //! of the verifier for three 576×320 views, next to the goal of 1 ms per tick). See
 //! `docs/rco.md`.
 
-use std::io::BufReader;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use fogline_rco::{
-    Backend, HostileBackend, Modules, OpenAiBackend, Rco, RcoParams, RulesBackend, replay,
-};
 
 use crate::backend_args::{BackendArg, OpenAiArgs};
 
@@ -152,49 +148,25 @@ fn eval_cmd(a: EvalArgs) -> Result<ExitCode> {
 }
 
 fn replay_cmd(a: ReplayArgs) -> Result<ExitCode> {
-    let file = std::fs::File::open(&a.file)
-        .with_context(|| format!("cannot open {}", a.file.display()))?;
-    let observations = replay::read_observations(BufReader::new(file))
-        .with_context(|| format!("{}", a.file.display()))?;
-    if observations.is_empty() {
-        bail!("{}: no observation", a.file.display());
-    }
-    let mut params = RcoParams {
-        modules: Modules::parse(&a.modules).context("--modules")?,
+    use fogline_api::rco::{ReplayBackend, ReplayJob, replay_file};
+    let backend = match a.backend {
+        BackendArg::Rules => ReplayBackend::Rules,
+        BackendArg::Openai => ReplayBackend::OpenAi(a.openai.params()?),
+        BackendArg::Hostile => ReplayBackend::Hostile { weak_brakes: false },
+        BackendArg::HostileWeakBrakes => ReplayBackend::Hostile { weak_brakes: true },
+    };
+    let job = ReplayJob {
+        file: a.file,
+        modules: a.modules,
         plan_limit: a.plan_limit,
-        ..RcoParams::default()
+        hazard_ratio: a.hazard_ratio,
+        json: a.json,
+        backend,
     };
-    params.verifier.hazard_ratio = a.hazard_ratio;
-    let backend: Box<dyn Backend> = match a.backend {
-        BackendArg::Rules => Box::new(RulesBackend::default()),
-        BackendArg::Openai => {
-            Box::new(OpenAiBackend::new(a.openai.params()?).context("--backend openai")?)
-        }
-        BackendArg::Hostile => Box::new(HostileBackend { weak_brakes: false }),
-        BackendArg::HostileWeakBrakes => Box::new(HostileBackend { weak_brakes: true }),
-    };
-    let mut rco = Rco::new(params, backend).context("invalid controller settings")?;
-    log::info!(
-        "{} observations from {} through {} ({})",
-        observations.len(),
-        a.file.display(),
-        rco.backend(),
-        a.modules
-    );
-    let replayed = replay::run(
-        &mut rco,
-        &observations,
-        a.json,
-        &mut std::io::stdout().lock(),
-    )?;
-    if replayed.all_fell_back() {
-        eprintln!(
-            "error: all {} ticks fell back to the safe default: {} never gave a usable answer \
-             (run with -v to see why)",
-            replayed.ticks,
-            rco.backend()
-        );
-        return Ok(ExitCode::from(1));
-    }
-    Ok(ExitCode::SUCCESS)
+    let usable = replay_file(&job, &mut std::io::stdout().lock())?;
+    Ok(if usable {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }

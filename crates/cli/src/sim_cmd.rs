@@ -97,7 +97,8 @@ struct RunArgs {
     #[arg(long, default_value_t = 2.5)]
     agent_hz: f64,
     /// A planner under test driving instead of the baseline's rules: `builtin`,
-    /// `http://HOST:PORT` or `egodriver://HOST:PORT` (60 s per request; docs/sim.md).
+    /// `http://HOST:PORT`, `https://HOST[:PORT]`, `egodriver://HOST:PORT` or
+    /// `egodriver+https://HOST[:PORT]` (60 s per request; docs/sim.md).
     #[arg(long)]
     planner: Option<String>,
     /// Print the summary as JSON on stdout instead of the tables.

@@ -13,6 +13,7 @@
 //! | `family`, `level` | no | family and level of the condition; needed for names other than the paper's grid |
 //! | `coc_changed` | no | overrides the computed change flag (`true/false/1/0`) |
 //! | `jaccard` | no | overrides the computed token Jaccard (in [0, 1]) |
+//! | `coc_cosine` | no | cosine similarity of the two CoC texts' sentence embeddings (in [−1, 1]; empty or null where unknown), as `fogline campaign export` writes it with all-MiniLM-L6-v2 |
 //!
 //! `ade_clean_m`, `ade_attacked_m` and `l2_m` are accepted for the three distances. Other
 //! columns are ignored. The format is chosen by extension (`.csv`, `.parquet`, `.jsonl` /
@@ -146,6 +147,9 @@ pub struct PairTable {
     pub changed: Vec<bool>,
     /// Per row: token Jaccard of the two CoC texts.
     pub jaccard: Vec<f64>,
+    /// Per row: cosine similarity of the two CoC texts' sentence embeddings, when the table
+    /// has it (`coc_cosine`).
+    pub cosine: Vec<Option<f64>>,
     /// Per row: action of the clean CoC.
     pub action_clean: Vec<u16>,
     /// Per row: action of the perturbed CoC.
@@ -318,9 +322,10 @@ enum Col {
     Level,
     CocChanged,
     Jaccard,
+    Cosine,
 }
 
-const N_COLS: usize = 12;
+const N_COLS: usize = 13;
 const REQUIRED: [Col; 8] = [
     Col::ClipId,
     Col::Scenario,
@@ -347,6 +352,7 @@ impl Col {
             Col::Level => "level",
             Col::CocChanged => "coc_changed",
             Col::Jaccard => "jaccard",
+            Col::Cosine => "coc_cosine",
         }
     }
 
@@ -367,11 +373,12 @@ impl Col {
             "level" => Col::Level,
             "coc_changed" => Col::CocChanged,
             "jaccard" => Col::Jaccard,
+            "coc_cosine" => Col::Cosine,
             _ => return None,
         })
     }
 
-    fn all_names() -> [&'static str; 14] {
+    fn all_names() -> [&'static str; 15] {
         [
             "clip_id",
             "scenario",
@@ -386,6 +393,7 @@ impl Col {
             "level",
             "coc_changed",
             "jaccard",
+            "coc_cosine",
             "l2_m",
         ]
     }
@@ -495,6 +503,7 @@ struct Builder<'o> {
     l2: Vec<f64>,
     changed: Vec<bool>,
     jaccard: Vec<f64>,
+    cosine: Vec<Option<f64>>,
     action_clean: Vec<u16>,
     action_attacked: Vec<u16>,
     scratch: TextScratch,
@@ -524,6 +533,7 @@ impl<'o> Builder<'o> {
             l2: Vec::new(),
             changed: Vec::new(),
             jaccard: Vec::new(),
+            cosine: Vec::new(),
             action_clean: Vec::new(),
             action_attacked: Vec::new(),
             scratch: TextScratch::default(),
@@ -706,6 +716,19 @@ impl<'o> Builder<'o> {
             }
         }
 
+        let cosine = match get(Col::Cosine) {
+            Cell::Null => None,
+            Cell::Str(s) if s.trim().is_empty() => None,
+            c => {
+                let v = self.number(row, Col::Cosine, c)?;
+                // f32 embeddings can put a cosine a hair beyond ±1.
+                if !(-1.0 - 1e-6..=1.0 + 1e-6).contains(&v) {
+                    return Err(self.bad(row, Col::Cosine, &c, "a cosine similarity in [-1, 1]"));
+                }
+                Some(v.clamp(-1.0, 1.0))
+            }
+        };
+
         self.rows.push(row);
         if self.rows.len().is_multiple_of(2_000_000) {
             log::info!("{}: {} rows read", self.path.display(), self.rows.len());
@@ -717,6 +740,7 @@ impl<'o> Builder<'o> {
         self.l2.push(l2);
         self.changed.push(f.changed);
         self.jaccard.push(f.jaccard);
+        self.cosine.push(cosine);
         self.action_clean.push(f.action_clean as u16);
         self.action_attacked.push(f.action_attacked as u16);
         Ok(())
@@ -861,6 +885,7 @@ impl<'o> Builder<'o> {
             l2_m: self.l2,
             changed: self.changed,
             jaccard: self.jaccard,
+            cosine: self.cosine,
             action_clean: self.action_clean,
             action_attacked: self.action_attacked,
             n_incomplete_clips: incomplete.len(),

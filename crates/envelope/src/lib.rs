@@ -106,6 +106,7 @@ pub fn conventions(p: &EnvelopeParams) -> BTreeMap<String, String> {
             p.jaccard_low, p.jaccard_low, p.jaccard_high, p.alpha
         ),
     );
+    put("semantic_similarity", "coc_cosine: cosine of the two CoC texts' sentence embeddings (all-MiniLM-L6-v2: BERT-uncased WordPiece, mean pooling, L2-normalised, as sentence-transformers; fogline-embed), as the pairs table gives it; cosine_l2 correlates it with L2 on changed pairs that have it, cosine_l2_mid_jaccard on those of the mid-range Jaccard band".into());
     put("icc", "ICC(2,1) and ICC(3,1) (Shrout & Fleiss) of the 0/1 flip flags, clips as targets and conditions as raters, complete clips only".into());
     put("chi2", "Pearson chi-square without Yates correction on the classified scenario x band counts, empty rows and columns dropped; Cramer's V = sqrt(chi2 / (n (min(r,c)-1)))".into());
     put("actions", "keyword rules on the leading clause (see the action rules); transitions count changed pairs of classified scenarios".into());

@@ -487,6 +487,26 @@ pub fn render(e: &Envelope) -> String {
             )
         }),
     );
+    let semantic = |c: Option<[crate::model::Corr; 2]>| {
+        c.map_or("—".into(), |[a, b]| {
+            format!(
+                "Pearson {} (p = {}), Spearman {} (p = {}), n = {}",
+                f(a.r, 4),
+                pval(a.p_value),
+                f(b.r, 4),
+                pval(b.p_value),
+                a.n
+            )
+        })
+    };
+    row(
+        "semantic similarity (MiniLM cosine) vs L2 on changed pairs",
+        semantic(st.cosine_l2),
+    );
+    row(
+        "semantic similarity vs L2, mid-range Jaccard only",
+        semantic(st.cosine_l2_mid_jaccard),
+    );
     row(
         "Mann–Whitney U: complete rewrites vs mid-range edits",
         st.mwu.as_ref().map_or("—".into(), |m| {

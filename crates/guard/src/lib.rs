@@ -82,7 +82,8 @@ pub enum GuardError {
 /// Settings of [`guard`].
 #[derive(Debug, Clone)]
 pub struct GuardParams {
-    /// The driver's address, `http://HOST:PORT`.
+    /// The driver's address, `http://HOST:PORT` or `https://HOST[:PORT]` (TLS: Mozilla's
+    /// roots and the process's CA certificate file, `--ca-cert`).
     pub driver: String,
     /// The scenario whose `odd.json` entry the monitor uses.
     pub scenario: String,
@@ -100,6 +101,10 @@ pub struct GuardParams {
     pub vehicle: VehicleParams,
     /// The server's limits (connections, timeouts, decoded pixels per frame).
     pub limits: Limits,
+    /// A PEM file of CA certificates trusted, on top of Mozilla's roots, for an `https://`
+    /// driver; `None`: the process default (`fogline_io::http::set_default_ca_cert`, what
+    /// the CLI's `--ca-cert` sets).
+    pub ca_cert: Option<std::path::PathBuf>,
 }
 
 impl Default for GuardParams {
@@ -113,6 +118,7 @@ impl Default for GuardParams {
             fault_retry_calls: 10,
             vehicle: VehicleParams::default(),
             limits: Limits::default(),
+            ca_cert: None,
         }
     }
 }
@@ -124,8 +130,11 @@ impl GuardParams {
             what,
             expected: expected.to_string(),
         };
-        if !(self.driver.starts_with("http://") && self.driver.len() > "http://".len()) {
-            return Err(bad("driver", "an address http://HOST:PORT"));
+        if let Err(e) = fogline_remote::egodriver::endpoint_url(&self.driver) {
+            return Err(bad(
+                "driver",
+                &format!("an address http://HOST:PORT or https://HOST[:PORT] ({e})"),
+            ));
         }
         if self.scenario.is_empty() {
             return Err(bad("scenario", "a scenario of the odd.json"));

@@ -22,7 +22,7 @@ use fogline_remote::egodriver::{
 };
 use fogline_types::odd::OddSpec;
 use tonic::metadata::MetadataValue;
-use tonic::transport::{Channel, Endpoint};
+use tonic::transport::Channel;
 use tonic::{Request, Response, Status};
 
 use crate::takeover::{self, EgoNow, TakeoverAnswer};
@@ -40,7 +40,8 @@ struct Shared {
     odd: OddSpec,
     params: GuardParams,
     log: Option<GuardLog>,
-    endpoint: Endpoint,
+    /// Checks the driver's certificate when its address is `https://`.
+    tls: fogline_io::http::Tls,
     /// Made on first use, inside the server's runtime (a lazy channel needs one).
     client: std::sync::OnceLock<EgodriverServiceClient<Channel>>,
     sessions: Mutex<HashMap<String, Arc<Mutex<Session>>>>,
@@ -63,6 +64,8 @@ struct Session {
     driver_down: u64,
     /// The driver's session must be re-opened before the next forward.
     reopen: bool,
+    /// The latest driver fault, in words (`start_session: Unavailable: …`).
+    last_fault: Option<String>,
     last_used: Instant,
 }
 
@@ -102,20 +105,26 @@ impl Guard {
             }
         })?;
         Rco::with_rules(RcoParams::default()).map_err(GuardError::Rco)?;
-        let timeout = Duration::from_millis(params.driver_timeout_ms);
-        let endpoint = Endpoint::from_shared(params.driver.clone())
-            .map_err(|e| GuardError::Params {
+        fogline_remote::egodriver::endpoint_url(&params.driver).map_err(|e| {
+            GuardError::Params {
                 what: "driver",
-                expected: format!("an address http://HOST:PORT ({e})"),
-            })?
-            .connect_timeout(timeout)
-            .timeout(timeout);
+                expected: format!("an address http://HOST:PORT or https://HOST[:PORT] ({e})"),
+            }
+        })?;
+        let tls = match &params.ca_cert {
+            Some(path) => fogline_io::http::Tls::new(Some(path.as_path())),
+            None => fogline_io::http::Tls::process_default(),
+        }
+        .map_err(|e| GuardError::Params {
+            what: "ca_cert",
+            expected: format!("a readable PEM file of CA certificates ({e})"),
+        })?;
         Ok(Self {
             shared: Arc::new(Shared {
                 odd,
                 params,
                 log,
-                endpoint,
+                tls,
                 client: std::sync::OnceLock::new(),
                 sessions: Mutex::new(HashMap::new()),
             }),
@@ -133,14 +142,22 @@ impl Guard {
 
 impl Shared {
     /// A handle on the driver's channel (reconnected as needed).
-    fn driver(&self) -> EgodriverServiceClient<Channel> {
-        self.client
-            .get_or_init(|| {
-                EgodriverServiceClient::new(self.endpoint.connect_lazy())
-                    .max_decoding_message_size(MAX_MESSAGE_BYTES)
-                    .max_encoding_message_size(MAX_MESSAGE_BYTES)
-            })
-            .clone()
+    fn driver(&self) -> Result<EgodriverServiceClient<Channel>, Status> {
+        if let Some(c) = self.client.get() {
+            return Ok(c.clone());
+        }
+        let timeout = Duration::from_millis(self.params.driver_timeout_ms);
+        let channel = fogline_remote::egodriver::channel(
+            &self.params.driver,
+            self.tls.clone(),
+            timeout,
+            Some(timeout),
+        )
+        .map_err(Status::unavailable)?;
+        let client = EgodriverServiceClient::new(channel)
+            .max_decoding_message_size(MAX_MESSAGE_BYTES)
+            .max_encoding_message_size(MAX_MESSAGE_BYTES);
+        Ok(self.client.get_or_init(|| client).clone())
     }
 
     fn session(&self, uuid: &str) -> Result<Arc<Mutex<Session>>, Status> {
@@ -195,6 +212,7 @@ impl Shared {
             }
             Err(e) => {
                 g.driver_down = self.params.fault_retry_calls;
+                g.last_fault = Some(format!("start_session: {:?}: {}", e.code(), e.message()));
                 log::warn!("guard: the driver is still down: {e}");
                 false
             }
@@ -210,7 +228,7 @@ impl Shared {
         if let Some(v) = revision.and_then(|v| MetadataValue::try_from(v).ok()) {
             req.metadata_mut().insert(CONTRACT_METADATA_KEY, v);
         }
-        let mut c = self.driver();
+        let mut c = self.driver()?;
         match tokio::time::timeout(self.timeout(), c.start_session(req)).await {
             Ok(Ok(_)) => Ok(()),
             Ok(Err(e)) if e.code() == tonic::Code::AlreadyExists => Ok(()),
@@ -234,6 +252,7 @@ impl Shared {
         }
         g.driver_down = self.params.fault_retry_calls;
         g.reopen = true;
+        g.last_fault = Some(format!("{what}: {:?}: {}", e.code(), e.message()));
     }
 
     /// Forwards one observation call; a driver fault is absorbed (the driver is marked
@@ -251,7 +270,14 @@ impl Shared {
         if !self.driver_ready(s).await {
             return Ok(());
         }
-        match tokio::time::timeout(self.timeout(), call(self.driver())).await {
+        let c = match self.driver() {
+            Ok(c) => c,
+            Err(e) => {
+                self.fault(s, what, &e);
+                return Ok(());
+            }
+        };
+        match tokio::time::timeout(self.timeout(), call(c)).await {
             Ok(Ok(_)) => Ok(()),
             Ok(Err(e)) if !is_fault(&e) => Err(e),
             Ok(Err(e)) => {
@@ -378,6 +404,7 @@ impl EgodriverService for Guard {
                     calls: 0,
                     driver_down: 0,
                     reopen: false,
+                    last_fault: None,
                     last_used: Instant::now(),
                 })),
             );
@@ -406,8 +433,8 @@ impl EgodriverService for Guard {
         let removed = lock(&self.shared.sessions).remove(&msg.session_uuid);
         if let Some(s) = removed
             && lock(&s).driver_down == 0
+            && let Ok(mut c) = self.shared.driver()
         {
-            let mut c = self.shared.driver();
             let _ = tokio::time::timeout(self.shared.timeout(), c.close_session(msg)).await;
         }
         Ok(Response::new(Empty {}))
@@ -580,8 +607,12 @@ impl EgodriverService for Guard {
         let mut reason = None;
         if in_env && self.shared.driver_ready(&s).await {
             let t = Instant::now();
-            let mut c = self.shared.driver();
-            let r = tokio::time::timeout(self.shared.timeout(), c.drive(msg.clone())).await;
+            let r = match self.shared.driver() {
+                Ok(mut c) => {
+                    tokio::time::timeout(self.shared.timeout(), c.drive(msg.clone())).await
+                }
+                Err(e) => Ok(Err(e)),
+            };
             let ms = t.elapsed().as_secs_f64() * 1e3;
             match r {
                 Ok(Ok(resp)) => {
@@ -630,7 +661,8 @@ impl EgodriverService for Guard {
                 }
             }
         } else if in_env {
-            reason = Some("driver down since an earlier fault".into());
+            let last = lock(&s).last_fault.clone().unwrap_or_default();
+            reason = Some(format!("driver down since an earlier fault ({last})"));
         }
         let (answer, anchor, monitor) = {
             let mut g = lock(&s);

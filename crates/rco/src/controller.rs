@@ -445,6 +445,12 @@ impl Rco {
         self.backend.describe()
     }
 
+    /// How the backend's answers are structured, when it negotiates that with a server
+    /// ([`Backend::structured_output`]).
+    pub fn structured_output(&self) -> Option<String> {
+        self.backend.structured_output()
+    }
+
     /// The safety constraints in force, if any.
     pub fn constraints(&self) -> Option<&SafetyConstraints> {
         self.constraints.as_ref()

@@ -52,7 +52,7 @@ pub use action::{
     Action, Behavior, Condition, Hazard, HazardState, PlanStep, SpeedControl, Strategy,
 };
 pub use backend::hostile::HostileBackend;
-pub use backend::openai::{OpenAiBackend, OpenAiParams};
+pub use backend::openai::{OpenAiBackend, OpenAiParams, StructuredOutput};
 pub use backend::rules::{RulesBackend, RulesParams, is_signal as is_signal_object};
 pub use backend::{Backend, BackendError, Query, QueryContext, Task};
 pub use control::Control;

@@ -46,8 +46,8 @@ pub fn to_jsonl(observations: &[Observation]) -> String {
 
 /// Runs `observations` through `rco` and writes one line per tick (its summary, or the whole
 /// `Decision` as JSON with `json`), then a summary of the run: planning rounds, refusals,
-/// fallbacks, backend calls and latency, the share of each source and speed control. What
-/// `fogline rco replay` prints.
+/// fallbacks, backend calls and latency, the share of each source and speed control, and the
+/// structured output mode of a backend that negotiates one. What `fogline rco replay` prints.
 pub fn run(
     rco: &mut crate::Rco,
     observations: &[Observation],
@@ -105,6 +105,9 @@ pub fn run(
         };
         writeln!(out, "sources: {}", share(&sources))?;
         writeln!(out, "speed controls: {}", share(&speeds))?;
+        if let Some(mode) = rco.structured_output() {
+            writeln!(out, "structured output: {mode}")?;
+        }
     }
     Ok(Replayed {
         ticks: observations.len(),

@@ -660,6 +660,29 @@ pub(crate) fn statistics(cx: &Ctx) -> String {
             )
         }),
     );
+    // The same check with the semantic similarity (coc_cosine); absent, the reason.
+    let semantic = |c: Option<[fogline_envelope::model::Corr; 2]>, key: &str| match c {
+        Some([a, b]) => format!(
+            "Pearson {} (p = {}), Spearman {} (p = {}), n = {}",
+            fixed(a.r, 4),
+            esc(&pval(a.p_value)),
+            fixed(b.r, 4),
+            esc(&pval(b.p_value)),
+            a.n
+        ),
+        None => st
+            .undefined
+            .get(key)
+            .map_or("—".into(), |why| format!("— ({})", esc(why))),
+    };
+    row(
+        "semantic similarity (all-MiniLM-L6-v2 cosine) vs L2 on changed pairs",
+        semantic(st.cosine_l2, "cosine_l2"),
+    );
+    row(
+        "semantic similarity vs L2, mid-range Jaccard only",
+        semantic(st.cosine_l2_mid_jaccard, "cosine_l2_mid_jaccard"),
+    );
     row(
         "Mann–Whitney U: complete rewrites vs mid-range edits",
         st.mwu.as_ref().map_or("—".into(), |m| {

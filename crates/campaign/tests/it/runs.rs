@@ -4,7 +4,6 @@ use std::path::Path;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use fogline_campaign::export::{Formats, ParquetCodec, export};
 use fogline_campaign::runner::Silent;
 use fogline_campaign::store::Outcome;
 use fogline_campaign::{
@@ -46,18 +45,8 @@ fn run_into(cfg: &CampaignConfig, store: &Path, shard: Shard, workers: usize) ->
 
 fn exported(store: &Path, dir: &Path) -> Vec<(String, Vec<u8>)> {
     let runs = Store::open(store).unwrap().runs().unwrap();
-    let s = export(
-        &runs,
-        dir,
-        Formats {
-            csv: true,
-            parquet: true,
-            codec: ParquetCodec::default(),
-        },
-        false,
-    )
-    .unwrap();
-    s.files
+    crate::export_all(&runs, dir)
+        .files
         .iter()
         .map(|f| {
             (

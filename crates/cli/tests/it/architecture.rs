@@ -7,6 +7,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
     BTreeMap::from([
         ("fogline-types", &[][..]),
         ("fogline-io", &[][..]),
+        ("fogline-embed", &[][..]),
         ("fogline-stats", &["fogline-types"][..]),
         ("fogline-perturb", &["fogline-types", "fogline-stats"][..]),
         (
@@ -50,6 +51,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
             &[
                 "fogline-types",
                 "fogline-io",
+                "fogline-embed",
                 "fogline-stats",
                 "fogline-world",
                 "fogline-perturb",

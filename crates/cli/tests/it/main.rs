@@ -6,6 +6,9 @@ mod architecture;
 mod campaign_cmd;
 mod envelope_cmd;
 mod interop;
+mod llama_cpp;
+#[path = "../../../rco/tests/it/mock_server.rs"]
+mod mock_server;
 mod mutations;
 mod perturb_cmd;
 mod planner_cmd;
@@ -13,6 +16,9 @@ mod rco_cmd;
 mod reference_planner;
 mod report_cmd;
 mod serve_load;
+mod tls_cmd;
+#[path = "../../../remote/tests/it/tls_support.rs"]
+mod tls_support;
 mod world_cmd;
 
 /// Runs the `fogline` binary with `args`.

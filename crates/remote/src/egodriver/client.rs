@@ -39,8 +39,8 @@ const COVER_TOLERANCE_S: f64 = 0.002;
 /// Settings of an egodriver [`Client`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClientOptions {
-    /// The policy's address, `host:port` (an `http://` prefix is accepted; TLS is not
-    /// supported).
+    /// The policy's address, `host:port` or `http://host:port` (plain), or
+    /// `https://host[:port]` (TLS, HTTP/2 negotiated by ALPN).
     pub endpoint: String,
     /// The time limit of each RPC (and of connecting).
     pub timeout: Duration,
@@ -87,33 +87,28 @@ impl std::fmt::Debug for Client {
 
 impl Client {
     /// A client for `opts.endpoint`. It does not connect yet: an unreachable endpoint shows
-    /// up as [`FailureKind::Unavailable`] on the first [`Planner::plan`].
+    /// up as [`FailureKind::Unavailable`] on the first [`Planner::plan`]. An `https://`
+    /// policy's certificate is checked against the bundled roots and the process's CA
+    /// certificate file (`fogline_io::http::set_default_ca_cert`, `--ca-cert`).
     pub fn new(opts: ClientOptions) -> Result<Self, PlanFailure> {
+        let tls = fogline_io::http::Tls::process_default()
+            .map_err(|e| PlanFailure::new(FailureKind::Input, format!("egodriver client: {e}")))?;
+        Self::with_tls(opts, tls)
+    }
+
+    /// A client for `opts.endpoint` whose `https://` connections are checked by `tls`.
+    pub fn with_tls(opts: ClientOptions, tls: fogline_io::http::Tls) -> Result<Self, PlanFailure> {
         let input = |m: String| PlanFailure::new(FailureKind::Input, m);
-        let raw = opts.endpoint.trim();
-        let uri = if let Some(rest) = raw.strip_prefix("http://") {
-            format!("http://{rest}")
-        } else if raw.contains("://") {
-            return Err(input(format!(
-                "egodriver endpoint {raw:?}: only plain host:port (or http://host:port) is supported"
-            )));
-        } else {
-            format!("http://{raw}")
-        };
         if opts.timeout.is_zero() {
             return Err(input(
                 "egodriver client: the timeout must be positive".into(),
             ));
         }
-        let endpoint = Endpoint::from_shared(uri)
-            .map_err(|e| input(format!("egodriver endpoint {raw:?}: {e}")))?
-            .connect_timeout(opts.timeout)
-            .tcp_nodelay(true);
         let runtime = crate::serving::client_runtime("fogline-egodriver-client")
             .map_err(|e| input(format!("cannot start the egodriver client runtime: {e}")))?;
         let channel = {
             let _guard = runtime.enter();
-            endpoint.connect_lazy()
+            channel(&opts.endpoint, tls, opts.timeout, None).map_err(input)?
         };
         Ok(Self {
             opts,
@@ -203,6 +198,74 @@ impl Planner for Client {
         self.runtime.block_on(self.session(session))
     }
 }
+
+/// The URL of an egodriver `endpoint`: `host:port` or `http://host:port` (plain HTTP/2) or
+/// `https://host[:port]` (TLS). The error names the endpoint and what is wrong with it.
+pub fn endpoint_url(endpoint: &str) -> Result<fogline_io::http::BaseUrl, String> {
+    let raw = endpoint.trim();
+    let url = if raw.starts_with("http://") || raw.starts_with("https://") {
+        raw.to_string()
+    } else if raw.contains("://") {
+        return Err(format!(
+            "egodriver endpoint {raw:?}: expected host:port, http://host:port or https://host[:port]"
+        ));
+    } else {
+        format!("http://{raw}")
+    };
+    let base = fogline_io::http::BaseUrl::parse(&url)
+        .map_err(|e| format!("egodriver endpoint {raw:?}: {e}"))?;
+    if !base.prefix.is_empty() {
+        return Err(format!(
+            "egodriver endpoint {raw:?}: a gRPC endpoint takes no path"
+        ));
+    }
+    Ok(base)
+}
+
+/// A gRPC channel to an egodriver `endpoint` ([`endpoint_url`]) whose every connection goes
+/// through `fogline_io::http::connect` — TLS checked by `tls` for `https://`, HTTP/2 chosen
+/// by ALPN `h2` — so certificate problems are said in words. It connects on first use,
+/// within `connect_timeout`; `request_timeout` bounds each call when given. Call it inside a
+/// tokio runtime (the channel's worker is spawned on it).
+pub fn channel(
+    endpoint: &str,
+    tls: fogline_io::http::Tls,
+    connect_timeout: Duration,
+    request_timeout: Option<Duration>,
+) -> Result<Channel, String> {
+    let base = endpoint_url(endpoint)?;
+    let raw = endpoint.trim();
+    let mut endpoint = Endpoint::from_shared(base.origin())
+        .map_err(|e| format!("egodriver endpoint {raw:?}: {e}"))?
+        .connect_timeout(connect_timeout)
+        .tcp_nodelay(true);
+    if let Some(t) = request_timeout {
+        endpoint = endpoint.timeout(t);
+    }
+    let connector = tower::service_fn(move |_: tonic::codegen::http::Uri| {
+        let (base, tls) = (base.clone(), tls.clone());
+        async move {
+            fogline_io::http::connect(&base, &tls, fogline_io::http::Alpn::H2)
+                .await
+                .map(hyper_util::rt::TokioIo::new)
+                .map_err(|e| ConnectFailure(format!("{}: {e}", base.origin())))
+        }
+    });
+    Ok(endpoint.connect_with_connector_lazy(connector))
+}
+
+/// Why the connector could not open a connection (its text names the endpoint and the
+/// problem: a certificate's, the TCP connection's).
+#[derive(Debug)]
+struct ConnectFailure(String);
+
+impl std::fmt::Display for ConnectFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for ConnectFailure {}
 
 /// The messages of one session, built (and the frames encoded) before any RPC.
 struct Session {

@@ -19,7 +19,7 @@
 mod client;
 mod server;
 
-pub use client::{Client, ClientOptions, declare_camera};
+pub use client::{Client, ClientOptions, channel, declare_camera, endpoint_url};
 pub use server::{ServeOptions, parse_camera_map, serve, serve_contract};
 
 pub use crate::{ImageFormat, Limits, ServerHandle};

@@ -15,8 +15,8 @@ use crate::{FailureKind, ImageFormat, PlanFailure, PlanRequest, Planner, codec};
 /// Settings of an HTTP [`Client`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ClientOptions {
-    /// The planner's base URL, `http://host:port` (a path prefix is allowed:
-    /// `http://host:port/planner` posts to `/planner/v1/plan`). HTTPS is not supported.
+    /// The planner's base URL, `http://host:port` or `https://host[:port]` (a path prefix is
+    /// allowed: `http://host:port/planner` posts to `/planner/v1/plan`).
     pub url: String,
     /// The time limit of one call: connecting, sending, planning and answering.
     pub timeout: Duration,
@@ -40,10 +40,10 @@ impl Default for ClientOptions {
 /// call on its own connection. Do not call from inside an async runtime.
 pub struct Client {
     opts: ClientOptions,
-    /// `host:port`, for connecting and the `Host` header.
-    authority: String,
-    /// The path prefix, without a trailing `/`.
-    prefix: String,
+    /// Where to connect, the `Host` header and the path prefix.
+    base: fogline_io::http::BaseUrl,
+    /// How an `https://` planner's certificate is checked.
+    tls: fogline_io::http::Tls,
     runtime: Runtime,
 }
 
@@ -51,6 +51,7 @@ impl std::fmt::Debug for Client {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("http::Client")
             .field("opts", &self.opts)
+            .field("tls", &self.tls)
             .finish_non_exhaustive()
     }
 }
@@ -60,12 +61,20 @@ fn failure(kind: FailureKind, m: String) -> PlanFailure {
 }
 
 impl Client {
-    /// A client for `opts.url`; nothing is connected until the first call.
+    /// A client for `opts.url`; nothing is connected until the first call. An `https://`
+    /// planner's certificate is checked against the bundled roots and the process's CA
+    /// certificate file (`fogline_io::http::set_default_ca_cert`, `--ca-cert`).
     pub fn new(opts: ClientOptions) -> Result<Self, PlanFailure> {
+        let tls = fogline_io::http::Tls::process_default()
+            .map_err(|e| failure(FailureKind::Input, format!("http client: {e}")))?;
+        Self::with_tls(opts, tls)
+    }
+
+    /// A client for `opts.url` whose `https://` connections are checked by `tls`.
+    pub fn with_tls(opts: ClientOptions, tls: fogline_io::http::Tls) -> Result<Self, PlanFailure> {
         let url = opts.url.trim();
         let base = fogline_io::http::BaseUrl::parse(url)
             .map_err(|e| failure(FailureKind::Input, format!("planner URL {url:?}: {e}")))?;
-        let (authority, prefix) = (base.authority, base.prefix);
         if opts.timeout.is_zero() {
             return Err(failure(
                 FailureKind::Input,
@@ -79,8 +88,8 @@ impl Client {
             )
         })?;
         Ok(Self {
-            prefix: prefix.to_string(),
-            authority,
+            base,
+            tls,
             opts,
             runtime,
         })
@@ -94,20 +103,19 @@ impl Client {
     async fn post(&self, body: Vec<u8>) -> Result<(StatusCode, Bytes), PlanFailure> {
         use fogline_io::http::PostError;
         let url = &self.opts.url;
-        let path = format!("{}{PLAN_PATH}", self.prefix);
+        let path = format!("{}{PLAN_PATH}", self.base.prefix);
         let (status, body) =
-            fogline_io::http::post_json(&self.authority, &path, body, None, MAX_BODY_BYTES)
+            fogline_io::http::post_json(&self.base, &self.tls, &path, body, None, MAX_BODY_BYTES)
                 .await
                 .map_err(|e| {
                     let kind = match e {
-                        PostError::Connect(_) | PostError::Connection(_) => {
-                            FailureKind::Unavailable
-                        }
                         PostError::NotHttp(_) | PostError::Body(_) | PostError::TooLarge(_) => {
                             FailureKind::InvalidAnswer
                         }
                         PostError::Timeout(_) => FailureKind::Timeout,
                         PostError::Request(_) => FailureKind::Input,
+                        // Connect, Connection, Tls (a certificate problem: no secure way there).
+                        _ => FailureKind::Unavailable,
                     };
                     failure(kind, format!("http planner at {url}: {e}"))
                 })?;

@@ -5,6 +5,8 @@
 mod egodriver_contract;
 mod http_protocol;
 mod round_trip;
+mod tls;
+mod tls_support;
 
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
