@@ -13,6 +13,43 @@ use fogline_sim::experiment::{ExperimentParams, Results, run_experiment_with};
 use fogline_sim::output::{Written, markdown, write_all};
 use fogline_types::planner::Planner;
 
+/// The routes `spec` names, for `fogline sim run --routes`: comma-separated route indices
+/// and inclusive ranges, 0-based (`0,5,10-13` is routes 0, 5, 10, 11, 12 and 13), in the
+/// order given, each once.
+///
+/// ```
+/// assert_eq!(fogline_api::sim::parse_routes("0,5,10-12").unwrap(), vec![0, 5, 10, 11, 12]);
+/// assert!(fogline_api::sim::parse_routes("3-1").is_err());
+/// ```
+pub fn parse_routes(spec: &str) -> Result<Vec<usize>> {
+    let mut out: Vec<usize> = Vec::new();
+    for part in spec.split(',').map(str::trim) {
+        let index = |s: &str| {
+            s.trim().parse::<usize>().map_err(|_| {
+                anyhow::anyhow!(
+                    "--routes {spec:?}: {part:?} is not a route index or a range A-B (0-based)"
+                )
+            })
+        };
+        let (first, last) = match part.split_once('-') {
+            Some((a, b)) => (index(a)?, index(b)?),
+            None => {
+                let i = index(part)?;
+                (i, i)
+            }
+        };
+        if last < first {
+            anyhow::bail!("--routes {spec:?}: the range {part:?} ends before it starts");
+        }
+        for r in first..=last {
+            if !out.contains(&r) {
+                out.push(r);
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// The planner under test that `spec` names, for `fogline sim run --planner`: `builtin`
 /// (the reference planner, followed by its trajectory instead of the baseline's rules),
 /// `http://HOST:PORT[/PREFIX]` or `https://HOST[:PORT][/PREFIX]` (fogline's HTTP/JSON
@@ -161,4 +198,26 @@ pub fn write_summary(
         written.closed_loop.display()
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_routes;
+
+    #[test]
+    fn routes_are_indices_and_inclusive_ranges_each_once() {
+        assert_eq!(parse_routes("4").unwrap(), vec![4]);
+        assert_eq!(parse_routes("3, 1-2,2").unwrap(), vec![3, 1, 2]);
+        assert_eq!(parse_routes("7-7").unwrap(), vec![7]);
+        for (bad, says) in [
+            ("1,x", "\"x\" is not a route index"),
+            ("5-2", "ends before it starts"),
+            ("-3", "\"-3\" is not a route index"),
+            ("", "\"\" is not a route index"),
+            ("1-2-3", "is not a route index"),
+        ] {
+            let e = parse_routes(bad).unwrap_err().to_string();
+            assert!(e.contains(says) && e.contains("--routes"), "{bad}: {e}");
+        }
+    }
 }

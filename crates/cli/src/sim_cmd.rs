@@ -54,10 +54,10 @@ struct RunArgs {
         default_value = "traffic_light,stop_sign,pedestrian,bicycle"
     )]
     deficits: Vec<String>,
-    /// Only these routes of the suite, comma-separated, 0-based (e.g. one route with `-vv`
-    /// to trace the agent). Default: all.
-    #[arg(long, value_delimiter = ',')]
-    routes: Vec<usize>,
+    /// Only these routes of the suite, 0-based, comma-separated indices and ranges
+    /// (`0,5,10-13`; one route with `-vv` to trace the agent). Default: all.
+    #[arg(long)]
+    routes: Option<String>,
     /// The first seed (towns, routes, traffic).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -172,7 +172,9 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         run: run_params,
         system_time_limit_s: a.system_time_limit_s,
         llm_latency_ms,
-        routes: (!a.routes.is_empty()).then(|| a.routes.clone()),
+        routes: (a.routes.as_deref())
+            .map(fogline_api::sim::parse_routes)
+            .transpose()?,
     };
     let driver = (a.planner.as_deref())
         .map(|spec| fogline_api::sim::planner_at(spec, 60.0))

@@ -545,6 +545,7 @@ pub(crate) fn guard_odd(dir: &std::path::Path) -> PathBuf {
 /// of `fogline serve egodriver`; the driver is killed mid-route and the guard keeps
 /// answering every `drive` (a safe stop or the RCO's override), then the route completes.
 #[test]
+#[allow(clippy::print_stdout)] // the run's counts, for the log of the test
 fn r20_carla_driver_interface_drives_through_fogline_guard_and_survives_the_driver() {
     let python = python();
     let dir = std::env::temp_dir().join(format!("fogline-guard-it-{}", std::process::id()));
