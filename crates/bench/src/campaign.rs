@@ -166,6 +166,16 @@ pub fn run(a: &CampaignBench, out: &mut dyn Write) -> Result<()> {
         )?;
         writeln!(
             out,
+            "  on {}; frames encoded in parallel, PNG by the {}, JPEG by {}",
+            crate::embed::cpu_name(),
+            fogline_io::encoder_name(ImageFormat::Png, fogline_io::PngSpeed::Wire),
+            fogline_io::encoder_name(
+                ImageFormat::Jpeg { quality: 95 },
+                fogline_io::PngSpeed::Wire
+            )
+        )?;
+        writeln!(
+            out,
             "  {:<28} {:>10} {:>12}",
             "path", "ms/call", "overhead ms"
         )?;

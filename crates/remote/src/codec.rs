@@ -6,14 +6,15 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::ImageFormat;
 
-/// Encodes one RGB8 row-major frame of `width × height` pixels ([`fogline_io::encode`]).
+/// Encodes one RGB8 row-major frame of `width × height` pixels for the wire
+/// ([`fogline_io::encode_with`], PNG at [`fogline_io::PngSpeed::Wire`]).
 pub(crate) fn encode(
     rgb: &[u8],
     width: u32,
     height: u32,
     format: ImageFormat,
 ) -> Result<Vec<u8>, String> {
-    fogline_io::encode(rgb, width, height, format)
+    fogline_io::encode_with(rgb, width, height, format, fogline_io::PngSpeed::Wire)
 }
 
 /// A decoded frame: width, height and RGB8 row-major pixels.
