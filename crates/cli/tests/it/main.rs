@@ -5,6 +5,7 @@
 mod architecture;
 mod campaign_cmd;
 mod envelope_cmd;
+mod import_cmd;
 mod interop;
 mod llama_cpp;
 #[path = "../../../rco/tests/it/mock_server.rs"]

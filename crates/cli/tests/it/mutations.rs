@@ -2,8 +2,11 @@
 //! insertions, deletions, truncations, duplicated chunks and huge numbers applied to valid
 //! inputs — a campaign configuration (TOML), a sim suite (JSON and TOML), recorded
 //! observations (JSON Lines, then driven through the controller), LLM answers of every task,
-//! frames given to `fogline perturb` (JPEG and PNG) and a clip on disk (its JSON metadata and
-//! PNG frames). Each mutant must give a clear error or a valid result: never a panic.
+//! frames given to `fogline perturb` (JPEG and PNG), a clip on disk (its JSON metadata and
+//! PNG frames), and the PhysicalAI-AV import's readers: MP4 videos decoded through ffmpeg
+//! (index first and last), egomotion and timestamp Parquet, `features.csv`, the scenario
+//! labels, chunk zips, and whole imports from a mutated zip. Each mutant must give a clear
+//! error or a valid result: never a panic.
 //! Deterministic (fixed seeds) and bounded: a few thousand mutants in all. The envelope
 //! readers (CSV, Parquet, JSONL) have their own mutation properties in `fogline-envelope`, the
 //! servers theirs (mutated requests sent to live servers, in `fogline-remote`).
@@ -249,4 +252,115 @@ fn frames_perturbed_from_disk() {
         });
         std::fs::write(&target, bytes).unwrap();
     }
+}
+
+#[test]
+fn physicalai_av_readers() {
+    use crate::import_cmd::{egomotion_analytic, egomotion_parquet, encode_mp4, ffmpeg};
+    use fogline_import::egomotion::Egomotion;
+    use fogline_import::table::Table;
+
+    // The video reader: mutated MP4s through ffmpeg, a clear error naming the video or
+    // the frames asked for at the size asked for.
+    let ff = fogline_import::Ffmpeg::at(&ffmpeg()).unwrap();
+    let (w, h) = (64u32, 48u32);
+    let frames: Vec<Vec<u8>> = (0..12)
+        .map(|k| {
+            (0..w * h * 3)
+                .map(|i| ((i as usize * 7 + k * 13) % 251) as u8)
+                .collect()
+        })
+        .collect();
+    let decoded = std::cell::Cell::new(0);
+    for (index_first, seed) in [(true, 60u64), (false, 61)] {
+        let mp4 = encode_mp4(ff.path(), &frames, w, h, index_first);
+        assert_eq!(
+            ff.decode("v.mp4", &mp4, &[2, 5, 11], w, h).unwrap().len(),
+            3
+        );
+        survive("mp4", &mp4, 80, seed, |m| {
+            match ff.decode("v.mp4", m, &[2, 5, 11], w, h) {
+                Ok(f) => {
+                    decoded.set(decoded.get() + 1);
+                    assert!(f.len() == 3 && f.iter().all(|f| f.len() == (w * h * 3) as usize));
+                }
+                Err(e) => assert!(e.to_string().starts_with("v.mp4: "), "{e}"),
+            }
+        });
+    }
+    assert!(decoded.get() >= 5, "only {} mutants decoded", decoded.get());
+
+    // Egomotion and frame timestamps (Parquet), down to the trajectory at t0.
+    let ego = egomotion_parquet(&egomotion_analytic(0, 8_000_000));
+    survive("egomotion parquet", &ego, 400, 62, |m| {
+        if let Ok(t) = Table::read("e.parquet", m.to_vec())
+            && let Ok(e) = Egomotion::from_table(&t)
+            && let Ok(ip) = e.interpolator()
+            && let Ok(win) = ip.window(5_100_000)
+        {
+            assert!(win.ground_truth.validate().is_ok());
+        }
+    });
+    let ts = crate::import_cmd::timestamps_parquet(&[0, 33_333, 66_667, 100_000]);
+    survive("timestamps parquet", &ts, 200, 63, |m| {
+        if let Ok(t) = Table::read("t.parquet", m.to_vec()) {
+            let _ = t.i64_column("timestamp");
+        }
+    });
+
+    // A whole tree: features.csv, the labels, the egomotion zip and the camera zip mutated
+    // in turn, each imported with the rest intact.
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("root");
+    let (video, stamps) = crate::import_cmd::video_around(&frames[..4], 5_100_000);
+    let clip = crate::import_cmd::TreeClip {
+        clip_id: "c-1".into(),
+        chunk: 0,
+        valid: true,
+        videos: vec![(CameraId::FrontWide, video, stamps, false)],
+        egomotion: egomotion_analytic(0, 12_000_000),
+    };
+    crate::import_cmd::write_tree(&root, ff.path(), &[clip], w, h);
+    let labels = dir.path().join("labels.csv");
+    std::fs::write(&labels, "clip_id,scenario\nc-1,STOP_SIGNAL\nc-2,OTHER\n").unwrap();
+    let params = fogline_import::ImportParams {
+        root: root.clone(),
+        out: dir.path().join("out"),
+        cameras: vec![CameraId::FrontWide],
+        width: w,
+        height: h,
+        labels: Some(labels.clone()),
+        ffmpeg: Some(ff.path().to_path_buf()),
+        jobs: Some(1),
+        ..Default::default()
+    };
+    let s = fogline_import::import_physicalai_av(&params).unwrap();
+    assert_eq!(s.n_clips, 1);
+    let targets = [
+        (root.join("features.csv"), 120, 64u64),
+        (labels, 80, 65),
+        (
+            root.join("labels/egomotion/egomotion.chunk_0000.zip"),
+            60,
+            66,
+        ),
+        (
+            root.join("camera/camera_front_wide_120fov/camera_front_wide_120fov.chunk_0000.zip"),
+            40,
+            67,
+        ),
+    ];
+    for (file, n, seed) in targets {
+        let original = std::fs::read(&file).unwrap();
+        let name = file.file_name().unwrap().to_string_lossy().into_owned();
+        survive(&name, &original, n, seed, |m| {
+            std::fs::write(&file, m).unwrap();
+            if let Err(e) = fogline_import::import_physicalai_av(&params) {
+                let text = e.to_string();
+                assert!(!text.is_empty());
+            }
+        });
+        std::fs::write(&file, &original).unwrap();
+    }
+    assert!(fogline_import::import_physicalai_av(&params).is_ok());
 }
