@@ -15,6 +15,9 @@ pub struct BenchCampaignArgs {
     /// Remote calls timed per protocol and image format (0 skips the overhead part).
     #[arg(long, default_value_t = 200)]
     calls: usize,
+    /// Runs of --calls calls each (the overhead is the median of the runs' medians).
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
     /// Print JSON.
     #[arg(long)]
     json: bool,
@@ -25,6 +28,7 @@ pub fn bench_campaign(a: BenchCampaignArgs) -> Result<ExitCode> {
     let opts = fogline_bench::campaign::CampaignBench {
         clips: a.clips,
         calls: a.calls,
+        runs: a.runs,
         json: a.json,
     };
     fogline_bench::campaign::run(&opts, &mut std::io::stdout().lock())?;

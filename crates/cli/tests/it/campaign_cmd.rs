@@ -429,3 +429,38 @@ fn exports_in_every_parquet_codec_read_back_as_the_csv() {
         text(&o)
     );
 }
+
+#[test]
+fn bench_campaign_times_every_remote_path_under_clean_and_noisy_frames() {
+    // Two calls per path, one run: the structure and the figures' presence, not their size.
+    let o = fogline(&[
+        "bench", "campaign", "--clips", "0", "--calls", "2", "--runs", "1", "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = String::from_utf8_lossy(&o.stdout).into_owned();
+    let json: serde_json::Value = serde_json::from_str(&t[t.find("\n{").unwrap()..]).unwrap();
+    let conditions = json["remote_overhead"].as_array().unwrap();
+    assert_eq!(conditions.len(), 2);
+    for (c, name) in conditions.iter().zip(["clean", "noise_30"]) {
+        assert_eq!(c["condition"], name);
+        assert_eq!(
+            (c["cameras"].as_u64(), c["frames_per_camera"].as_u64()),
+            (Some(4), Some(4))
+        );
+        let paths = c["paths"].as_array().unwrap();
+        assert_eq!(paths.len(), 5, "{c}");
+        for p in paths {
+            assert!(p["ms"].as_f64().unwrap() > 0.0, "{p}");
+        }
+        let codec = c["codec_one_thread"].as_array().unwrap();
+        // Noise leaves deflate nothing: the wire PNG is stored, about the pixels' size.
+        let png = codec[0]["bytes"].as_f64().unwrap() / (16.0 * 576.0 * 320.0 * 3.0);
+        if name == "clean" {
+            assert!(png < 0.5, "{png}");
+        } else {
+            assert!(png > 1.0 && png < 1.01, "{png}");
+        }
+    }
+    assert!(t.contains("egodriver gRPC, jpeg95"), "{t}");
+    assert!(t.contains("jpeg-encoder, quality 95"), "{t}");
+}

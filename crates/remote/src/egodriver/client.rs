@@ -169,13 +169,55 @@ impl Client {
         drive: DriveRequest,
     ) -> Result<PlannerOutput, PlanFailure> {
         let timeout = self.opts.timeout;
+        // One task per camera, each sending its frames oldest first: the cameras' frames
+        // travel and are decoded by the server at once, each camera's still in order.
+        let mut cameras: Vec<Vec<RolloutCameraImage>> = Vec::new();
         for image in images {
-            call(
-                "submit_image_observation",
-                timeout,
-                rpc.submit_image_observation(with_timeout(image, timeout)),
-            )
-            .await?;
+            let id = |i: &RolloutCameraImage| i.camera_image.as_ref().map(|c| c.logical_id.clone());
+            match cameras.last_mut() {
+                Some(last) if last.first().map(id) == Some(id(&image)) => last.push(image),
+                _ => cameras.push(vec![image]),
+            }
+        }
+        let mut tasks = tokio::task::JoinSet::new();
+        for (k, frames) in cameras.into_iter().enumerate() {
+            let mut rpc = rpc.clone();
+            tasks.spawn(async move {
+                for image in frames {
+                    call(
+                        "submit_image_observation",
+                        timeout,
+                        rpc.submit_image_observation(with_timeout(image, timeout)),
+                    )
+                    .await
+                    .map_err(|e| (k, e))?;
+                }
+                Ok::<(), (usize, PlanFailure)>(())
+            });
+        }
+        // Every camera's calls end (each stops at its first failure); the failure reported
+        // is the first camera's, whichever finished first.
+        let mut failed: Option<(usize, PlanFailure)> = None;
+        while let Some(joined) = tasks.join_next().await {
+            let failure = match joined {
+                Ok(Ok(())) => continue,
+                Ok(Err(f)) => f,
+                Err(e) if e.is_panic() => std::panic::resume_unwind(e.into_panic()),
+                // Cancelled: the client's runtime is shutting down.
+                Err(e) => (
+                    usize::MAX,
+                    PlanFailure::new(
+                        FailureKind::Unavailable,
+                        format!("egodriver submit_image_observation: {e}"),
+                    ),
+                ),
+            };
+            if failed.as_ref().is_none_or(|(k, _)| failure.0 < *k) {
+                failed = Some(failure);
+            }
+        }
+        if let Some((_, failure)) = failed {
+            return Err(failure);
         }
         call(
             "submit_egomotion_observation",
