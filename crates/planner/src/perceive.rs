@@ -12,8 +12,8 @@
 
 use crate::vision::{
     LampColour, Refs, Rgb, Sample, Smoothed, View, chroma, gain_of, is_object, is_road,
-    is_sign_red, is_white_paint, is_yellow_paint, lamp_colour, lamp_colour_over, lum,
-    road_distance, round_exact, round_pos, round_px,
+    is_sign_red, is_sign_red_hazed, is_white_paint, is_yellow_paint, lamp_colour, lamp_colour_over,
+    lum, road_distance, round_exact, round_pos, round_px,
 };
 use fogline_types::clip::{CameraId, EgoPose, PlannerInput};
 
@@ -2018,90 +2018,221 @@ fn traffic_light(eyes: &Eyes<'_>, lost: &[Lost]) -> Option<(Lamp, f64)> {
     None
 }
 
-/// A stop sign: a compact patch of sign red right of centre, well above the horizon, whose
-/// width and elevation give consistent distances.
+/// The world's stop sign as a driver knows it: a red octagon 0.74 m across its corners and
+/// 0.68 m across its flats (flat at the top), inside a white rim, a white legend across its
+/// middle, its centre 2.25 m up: 0.65 m above the cameras.
+const SIGN_FACE_M: f64 = 0.684;
+/// Height of a stop sign's centre above the cameras, m.
+const SIGN_RISE_M: f64 = 0.65;
+/// The farthest a stop sign is read, m (from the camera).
+const SIGN_READ_MAX_M: f64 = 50.0;
+
+/// A stop sign: a *face* of sign red right of the lane and above the horizon, whose size
+/// and elevation give one distance.
+///
+/// Red blocks (single pixels on clean frames; on noisy ones blocks large enough for their
+/// mean to be judged) are grouped into 8-connected components, largest first, and a
+/// component is a face when it
+/// - is red as paint is red through haze ([`is_sign_red`], or [`is_sign_red_hazed`]: fog
+///   adds the same grey to every channel, so the ratios of the channels fall with distance
+///   but their differences only with the transmission);
+/// - is about as tall as wide (an octagon), does not touch the frame's edge (a cut face's
+///   width is no measure of its distance), and its width and the elevation of its centre
+///   give the same distance within a pixel's rounding of each;
+/// - is red *throughout*: its middle holds red and the white legend, never a dark core (a
+///   lost region — a black fill inside a red outline — is not a sign, however red its
+///   ring), and its colour is lit paint, which reflects some of every channel (a full-scale
+///   pure red with no green or blue is an overlay: a deficit's outline, too small for a
+///   fill in the wide view);
+/// - stands right of the lane and is not in a region the perception knows it lost.
+///
+/// The telephoto view is read first (a face 20 m away is 17 px across in it), then the
+/// wide view (3–4 px at 20 m, 7 px at 10 m, where the sign has left the telephoto view).
 fn stop_sign(eyes: &Eyes<'_>, gain: f32, lost: &[Lost]) -> Option<f64> {
-    for (view, min_px) in [(&eyes.tele, 12usize), (&eyes.wide, 8usize)] {
-        let Some(view) = view else { continue };
-        let (cx, cy) = (view.calib.cx, view.calib.cy);
-        let w = view.width();
-        // The sign's face is large (0.74 m): blocks of up to 6 pixels fit inside it.
-        let k = lamp_patch(view.sigma, 10.0);
-        let mut pts: Vec<(usize, usize)> = Vec::new();
-        // A sign face (centre 0.65 m above the camera, 0.74 m across) seen from 6 m or
-        // further lies within these rows above the horizon.
-        let rows_up = (view.calib.fy * (0.65 + 0.45) / 6.0).ceil();
-        let mut v = (cy - rows_up).max(0.0) as usize;
-        while v + k <= (cy - 1.0).max(0.0) as usize {
-            let mut u = cx as usize + 3;
-            while u + k <= w {
-                // A block, or on noisy frames the block of twice its side starting there
-                // (four times the pixels, half the noise: a near sign's face holds it).
-                let big = (k > 1 && u + 2 * k <= w && v + 2 * k <= cy as usize)
-                    .then(|| {
-                        view.rect_sample(
-                            u as isize,
-                            v as isize,
-                            (u + 2 * k) as isize,
-                            (v + 2 * k) as isize,
-                        )
-                    })
-                    .flatten()
-                    .is_some_and(|s| is_sign_red(s, gain));
-                let side = if big { 2 * k } else { k };
-                if big || block(view, u, v, k).is_some_and(|s| is_sign_red(s, gain)) {
-                    // Every pixel of the block counts.
-                    for dv in 0..side {
-                        for du in 0..side {
-                            pts.push((u + du, v + dv));
-                        }
-                    }
-                }
-                u += k;
-            }
-            v += k;
+    for view in [&eyes.tele, &eyes.wide].into_iter().flatten() {
+        if let Some(d) = sign_in_view(view, gain, lost) {
+            return Some(d + view.calib.x_m);
         }
-        if pts.len() < min_px {
-            continue;
-        }
-        // The largest cluster by column gaps.
-        pts.sort_unstable();
-        pts.dedup();
-        let mut best: &[(usize, usize)] = &[];
-        let mut start = 0;
-        for i in 1..=pts.len() {
-            if i == pts.len() || pts[i].0 > pts[i - 1].0 + 3 {
-                if i - start > best.len() {
-                    best = &pts[start..i];
-                }
-                start = i;
-            }
-        }
-        if best.len() < min_px {
-            continue;
-        }
-        let u0 = best.iter().map(|p| p.0).min().unwrap_or(0);
-        let u1 = best.iter().map(|p| p.0).max().unwrap_or(0);
-        let vmean = best.iter().map(|p| p.1 as f64).sum::<f64>() / best.len() as f64 + 0.5;
-        let width_px = (u1 - u0 + 1) as f64;
-        let elev = (cy - vmean) / view.calib.fy;
-        // The red face is about 0.74 m across, its centre 0.65 m above the camera.
-        let d_width = view.calib.fx * 0.74 / width_px;
-        let d_elev = if elev > 1e-3 { 0.65 / elev } else { d_width };
-        let ratio = d_elev / d_width;
-        if !(0.5..=2.0).contains(&ratio) {
-            continue;
-        }
-        let d = 0.5 * (d_width + d_elev);
-        // Signs stand beside the road: its centre must be well right of the lane.
-        let u_mid = 0.5 * (u0 + u1) as f64 + 0.5;
-        let lateral = -(u_mid - cx) * d / view.calib.fx;
-        if lateral > -2.0 || in_lost(lost, view.calib.id, u_mid, vmean) {
-            continue;
-        }
-        return Some(d + view.calib.x_m);
     }
     None
+}
+
+/// An 8-connected component of sign-red blocks: the blocks' top-left pixels and the
+/// component's pixel box (`u1`, `v1` exclusive).
+struct RedBlob {
+    blocks: Vec<(usize, usize)>,
+    u0: usize,
+    u1: usize,
+    v0: usize,
+    v1: usize,
+}
+
+/// The distance (from the camera) of the nearest-looking stop-sign face in one view.
+fn sign_in_view(view: &View<'_>, gain: f32, lost: &[Lost]) -> Option<f64> {
+    let (cx, cy) = (view.calib.cx, view.calib.cy);
+    let w = view.width();
+    let k = lamp_patch(view.sigma, 10.0);
+    // A face (centre 0.65 m above the camera, 0.84 m tall with its rim) seen from 6 m or
+    // further lies within these rows above the horizon.
+    let rows_up = (view.calib.fy * (SIGN_RISE_M + 0.45) / 6.0).ceil();
+    let v_first = (cy - rows_up).max(0.0) as usize;
+    let v_end = (cy - 1.0).max(0.0) as usize;
+    let u_first = cx as usize + 3;
+    if v_end < v_first + k || u_first + k > w {
+        return None;
+    }
+    let (gw, gh) = ((w - u_first) / k, (v_end - v_first) / k);
+    let at = |i: usize, j: usize| (u_first + i * k, v_first + j * k);
+    let red: Vec<bool> = (0..gw * gh)
+        .map(|c| {
+            let (u, v) = at(c % gw, c / gw);
+            // On noisy frames a block's hue is uncertain: only the strict test (the hazed
+            // one's margins let noisy dusk sky and warm walls through: phantom signs in
+            // `fogline planner eval` at noise σ 30).
+            block(view, u, v, k)
+                .is_some_and(|s| is_sign_red(s, gain) || (k == 1 && is_sign_red_hazed(s, gain)))
+        })
+        .collect();
+    let mut seen = vec![false; red.len()];
+    let mut blobs: Vec<RedBlob> = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..red.len() {
+        if !red[start] || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        stack.push(start);
+        let mut blob = RedBlob {
+            blocks: Vec::new(),
+            u0: usize::MAX,
+            u1: 0,
+            v0: usize::MAX,
+            v1: 0,
+        };
+        while let Some(c) = stack.pop() {
+            let (i, j) = (c % gw, c / gw);
+            let (u, v) = at(i, j);
+            blob.blocks.push((u, v));
+            blob.u0 = blob.u0.min(u);
+            blob.u1 = blob.u1.max(u + k);
+            blob.v0 = blob.v0.min(v);
+            blob.v1 = blob.v1.max(v + k);
+            for (di, dj) in [
+                (-1, -1),
+                (0, -1),
+                (1, -1),
+                (-1, 0),
+                (1, 0),
+                (-1, 1),
+                (0, 1),
+                (1, 1),
+            ] {
+                let (ni, nj) = (i as isize + di, j as isize + dj);
+                if ni < 0 || nj < 0 || ni >= gw as isize || nj >= gh as isize {
+                    continue;
+                }
+                let n = nj as usize * gw + ni as usize;
+                if red[n] && !seen[n] {
+                    seen[n] = true;
+                    stack.push(n);
+                }
+            }
+        }
+        blobs.push(blob);
+    }
+    blobs.sort_by_key(|b| std::cmp::Reverse(b.blocks.len()));
+    blobs
+        .iter()
+        .take(8)
+        .find_map(|b| sign_face(view, b, k, lost))
+}
+
+/// The distance (from the camera) of the stop sign whose face `b` is, if it is one (see
+/// [`stop_sign`]).
+fn sign_face(view: &View<'_>, b: &RedBlob, k: usize, lost: &[Lost]) -> Option<f64> {
+    let (cx, cy) = (view.calib.cx, view.calib.cy);
+    let (fx, fy) = (view.calib.fx, view.calib.fy);
+    let n_px = b.blocks.len() * k * k;
+    let (w_px, h_px) = ((b.u1 - b.u0) as f64, (b.v1 - b.v0) as f64);
+    // At least 2 × 2 pixels and 4 of them: nothing smaller has a shape.
+    if n_px < 4 || w_px < 2.0 || h_px < 2.0 {
+        return None;
+    }
+    // As tall as wide, within a pixel's rounding of each side.
+    if h_px > 1.5 * w_px + 1.0 || w_px > 1.5 * h_px + 1.0 {
+        return None;
+    }
+    // A face cut by the frame's edge (the telephoto view close up) has no measurable width.
+    if b.u1 + k > view.width() || b.v0 < k {
+        return None;
+    }
+    let u_mid = 0.5 * (b.u0 + b.u1) as f64;
+    let v_mid = 0.5 * (b.v0 + b.v1) as f64;
+    let rise_px = cy - v_mid;
+    if rise_px <= 0.0 {
+        return None;
+    }
+    // Width and elevation agree: the ranges each allows with a block of rounding (a pixel
+    // on clean frames) overlap.
+    let by_width = |px: f64| fx * SIGN_FACE_M / px.max(0.5);
+    let by_rise = |px: f64| SIGN_RISE_M * fy / px.max(0.5);
+    let kf = k as f64;
+    let (w_near, w_far) = (by_width(w_px + kf), by_width(w_px - kf));
+    let (e_near, e_far) = (by_rise(rise_px + kf), by_rise(rise_px - kf));
+    if w_near.max(e_near) > w_far.min(e_far) {
+        return None;
+    }
+    // Each reading weighted by how many pixels it spans.
+    let (d_w, d_e) = (by_width(w_px), by_rise(rise_px));
+    let d = (d_w * w_px + d_e * rise_px) / (w_px + rise_px);
+    // Beyond 50 m a face is a few pixels even in the telephoto view (other red specks are
+    // as large), and a stop from the 8 m/s cruise needs 13 m: such a sign is read later.
+    if d > SIGN_READ_MAX_M {
+        return None;
+    }
+    // Signs stand beside the road: its centre well right of the lane.
+    let lateral = -(u_mid - cx) * d / fx;
+    if lateral > -2.0 || in_lost(lost, view.calib.id, u_mid, v_mid) {
+        return None;
+    }
+    // Lit paint: the face's mean colour reflects some green and blue.
+    let mut face = [0f32; 3];
+    let mut s2 = 0f32;
+    for &(u, v) in &b.blocks {
+        let s = block(view, u, v, k)?;
+        for (f, c) in face.iter_mut().zip(s.c) {
+            *f += c;
+        }
+        s2 += s.s * s.s;
+    }
+    let n = b.blocks.len() as f32;
+    let face = face.map(|c| c / n);
+    let face_s = (s2 / n).sqrt() / n.sqrt();
+    if face[1].max(face[2]) + 2.0 * face_s < 0.06 * face[0] {
+        return None;
+    }
+    // No dark core: the middle third of the box (at least one pixel each way) holds red and
+    // the white legend; a pixel darker than half the face's luminance is neither, and a
+    // quarter of them is a hole.
+    let third = |a: usize, b: usize| {
+        let len = b - a;
+        let m = len.div_ceil(3).max(1);
+        let lo = a + (len - m) / 2;
+        (lo, lo + m)
+    };
+    let ((mu0, mu1), (mv0, mv1)) = (third(b.u0, b.u1), third(b.v0, b.v1));
+    let dark_below = 0.5 * lum(face);
+    let (mut dark, mut all) = (0usize, 0usize);
+    for v in mv0..mv1 {
+        for u in mu0..mu1 {
+            all += 1;
+            dark += usize::from(lum(view.pixel(u, v)) + 2.0 * view.sigma < dark_below);
+        }
+    }
+    if 4 * dark >= all.max(1) {
+        return None;
+    }
+    Some(d)
 }
 
 #[cfg(test)]
@@ -2255,6 +2386,211 @@ mod tests {
                 (150, 0, 151, 1),
             ] {
                 assert_eq!(plain.rect(x0, y0, x1, y1), pooled.rect(x0, y0, x1, y1));
+            }
+        }
+    }
+
+    /// Issue 17: the stop-sign reader on synthetic frames drawn from the sign's geometry
+    /// (not from the renderer, and with no seed the reader was tuned on).
+    mod stop_sign_reader {
+        use super::super::*;
+        use fogline_types::clip::CameraCalib;
+
+        /// The closed loop's cameras: wide 192 × 144 at 90°, tele 256 × 192 at 30°.
+        fn cams() -> (CameraCalib, CameraCalib) {
+            let mut wide = CameraCalib::standard(CameraId::FrontWide, 192, 144);
+            wide.fx = 96.0;
+            wide.fy = 96.0;
+            let tele = CameraCalib::standard(CameraId::FrontTele, 256, 192);
+            (wide, tele)
+        }
+
+        /// What a frame shows at each pixel: `None` for the background (sky above the
+        /// horizon, asphalt below).
+        type Painter<'a> = &'a dyn Fn([f64; 3]) -> Option<[f32; 3]>;
+
+        /// A frame of `calib` with solids painted by `paint`, which gets the ray (rig frame,
+        /// unit along the optical axis); `veil` is the Koschmieder transmission of
+        /// everything painted (airlight 204), `light` the scene's light.
+        fn frame(calib: &CameraCalib, paint: Painter<'_>, light: f32, veil: f32) -> Vec<u8> {
+            let (w, h) = (calib.width as usize, calib.height as usize);
+            let mut rgb = vec![0u8; w * h * 3];
+            for v in 0..h {
+                for u in 0..w {
+                    let ray = calib.ray(u as f64 + 0.5, v as f64 + 0.5);
+                    let c = match paint(ray) {
+                        Some(c) => c.map(|x| x * light * veil + 204.0 * (1.0 - veil)),
+                        None if ray[2] > 0.0 => [150.0, 170.0, 200.0].map(|x| x * light),
+                        None => [90.0, 90.0, 95.0].map(|x| x * light),
+                    };
+                    for (k, x) in c.iter().enumerate() {
+                        rgb[(v * w + u) * 3 + k] = x.round().clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+            rgb
+        }
+
+        /// A regular octagon with flats at the top, apothem `a`, at offset `(y, z)`.
+        fn octagon(y: f64, z: f64, a: f64) -> bool {
+            y.abs() <= a && z.abs() <= a && y.abs() + z.abs() <= a * std::f64::consts::SQRT_2
+        }
+
+        /// Where the ray from `calib`'s camera meets the plane `x = x_m`, as `(y, z)`.
+        fn on_plane(calib: &CameraCalib, ray: [f64; 3], x_m: f64) -> Option<(f64, f64)> {
+            if ray[0] <= 1e-9 {
+                return None;
+            }
+            let t = (x_m - calib.x_m) / ray[0];
+            Some((calib.y_m + t * ray[1], calib.z_m + t * ray[2]))
+        }
+
+        /// The world's stop sign facing the camera, `dist_m` ahead of it and 3.15 m to the
+        /// right (where the towns put it for a car in its lane): a red octagon (apothem
+        /// 0.342 m) in a white rim (0.388 m), a white legend 0.36 × 0.09 m, centre 2.25 m up.
+        fn sign(calib: &CameraCalib, dist_m: f64, ray: [f64; 3]) -> Option<[f32; 3]> {
+            let (y, z) = on_plane(calib, ray, calib.x_m + dist_m)?;
+            let (dy, dz) = (y + 3.15, z - 2.25);
+            if dy.abs() <= 0.18 && dz.abs() <= 0.045 {
+                Some([240.0; 3])
+            } else if octagon(dy, dz, 0.342) {
+                Some([196.0, 22.0, 32.0])
+            } else if octagon(dy, dz, 0.388) {
+                Some([240.0; 3])
+            } else {
+                None
+            }
+        }
+
+        fn read(wide_rgb: &[u8], tele_rgb: &[u8], lost: &[Lost]) -> Option<f64> {
+            let (wide, tele) = cams();
+            let eyes = Eyes {
+                wide: Some(View::plain(&wide, wide_rgb, Some(0.0))),
+                tele: Some(View::plain(&tele, tele_rgb, Some(0.0))),
+                past_wide: Vec::new(),
+                past_tele: Vec::new(),
+            };
+            let white = eyes.wide.as_ref().map_or(255.0, |v| v.white);
+            stop_sign(&eyes, gain_of(white), lost)
+        }
+
+        /// Draws a deficit's mask over the pixel box `(u0, v0, u1, v1)`: black inside a
+        /// 2-pixel outline of pure red (as `fogline-perturb` draws it).
+        fn mask(rgb: &mut [u8], w: usize, (u0, v0, u1, v1): (usize, usize, usize, usize)) {
+            for v in v0..v1 {
+                for u in u0..u1 {
+                    let ring = u < u0 + 2 || u + 2 >= u1 || v < v0 + 2 || v + 2 >= v1;
+                    let px = if ring { [255, 0, 0] } else { [0, 0, 0] };
+                    rgb[(v * w + u) * 3..(v * w + u) * 3 + 3].copy_from_slice(&px);
+                }
+            }
+        }
+
+        /// The pixel box of the sign's face (with its rim) in `calib`'s frame.
+        fn face_box(calib: &CameraCalib, dist_m: f64) -> (usize, usize, usize, usize) {
+            let x = calib.x_m + dist_m;
+            let (a, _, _) = calib.project([x, -3.15 + 0.42, 2.25 + 0.42]).unwrap();
+            let (_, b, _) = calib.project([x, -3.15 + 0.42, 2.25 + 0.42]).unwrap();
+            let (c, d, _) = calib.project([x, -3.15 - 0.42, 2.25 - 0.42]).unwrap();
+            (
+                a.floor() as usize,
+                b.floor() as usize,
+                c.ceil() as usize,
+                d.ceil() as usize,
+            )
+        }
+
+        #[test]
+        fn a_sign_is_read_at_every_distance_a_stop_needs_in_clear_air_haze_and_at_night() {
+            let (wide, tele) = cams();
+            // A car at 8 m/s needs 12.8 m at 2.5 m/s²; from 28 m in the telephoto view, from
+            // 21 m in the wide view alone (the telephoto's sign hidden), down to 8 m where
+            // it has left the telephoto view.
+            for (light, veil_per_m) in [(1.0f32, 0.0f64), (0.55, 0.0), (0.88, 3.912 / 120.0)] {
+                for dist_m in [8.0, 10.0, 13.0, 16.0, 19.0, 21.0, 23.0, 25.0, 28.0] {
+                    let veil = (-veil_per_m * dist_m).exp() as f32;
+                    let paint = |c: &CameraCalib| {
+                        let c = *c;
+                        move |ray: [f64; 3]| sign(&c, dist_m, ray)
+                    };
+                    let w = frame(&wide, &paint(&wide), light, veil);
+                    let t = frame(&tele, &paint(&tele), light, veil);
+                    let truth = dist_m + wide.x_m;
+                    let got = read(&w, &t, &[]);
+                    assert!(
+                        got.is_some_and(|d| (d - truth).abs() <= 0.2 * truth),
+                        "light {light} veil {veil:.2} at {dist_m} m: {got:?}"
+                    );
+                    // The wide view alone (the telephoto's sign masked and known lost): its
+                    // face is 3 px across at 21 m, enough to stop from the cruise in time;
+                    // at 25 m (2.6 px) it is not read.
+                    if dist_m <= 22.0 {
+                        let mut t_masked = t.clone();
+                        let bx = face_box(&tele, dist_m);
+                        let bx = (bx.0, bx.1, bx.2.min(256), bx.3);
+                        mask(&mut t_masked, 256, bx);
+                        let lost = [(
+                            CameraId::FrontTele,
+                            [bx.0 as f64, bx.1 as f64, bx.2 as f64, bx.3 as f64],
+                        )];
+                        let got = read(&w, &t_masked, &lost);
+                        assert!(
+                            got.is_some_and(|d| (d - truth).abs() <= 0.25 * truth),
+                            "wide only, light {light} veil {veil:.2} at {dist_m} m: {got:?}"
+                        );
+                    }
+                }
+            }
+        }
+
+        #[test]
+        fn a_deficits_mask_is_no_sign_whether_or_not_it_is_known_lost() {
+            let (wide, tele) = cams();
+            let empty = |_: [f64; 3]| None;
+            for dist_m in [8.0, 12.0, 16.0, 20.0, 25.0, 35.0] {
+                let mut w = frame(&wide, &empty, 1.0, 1.0);
+                let mut t = frame(&tele, &empty, 1.0, 1.0);
+                let bw = face_box(&wide, dist_m);
+                mask(&mut w, 192, bw);
+                let bt = face_box(&tele, dist_m);
+                if bt.2 <= 256 {
+                    mask(&mut t, 256, bt);
+                }
+                assert_eq!(read(&w, &t, &[]), None, "mask at {dist_m} m ({bw:?})");
+            }
+        }
+
+        #[test]
+        fn red_cars_brake_lamps_and_signal_lamps_are_no_sign() {
+            let (wide, tele) = cams();
+            for dist_m in [8.0, 12.0, 18.0, 25.0, 35.0] {
+                // A red car parked at the kerb (body 0.3–1.5 m up), its lit brake lamps at
+                // 1.0 m, and a red van's box up to 2.9 m beside it; a red signal lamp 5.5 m up.
+                let things = |c: CameraCalib| {
+                    move |ray: [f64; 3]| {
+                        let (y, z) = on_plane(&c, ray, c.x_m + dist_m)?;
+                        if (y + 3.4).abs() <= 0.9
+                            && (z - 1.0).abs() <= 0.12
+                            && (y + 3.4).abs() >= 0.6
+                        {
+                            Some([255.0, 34.0, 28.0])
+                        } else if ((y + 3.4).abs() <= 0.9 && (0.3..=1.5).contains(&z))
+                            || ((y + 6.0).abs() <= 1.1 && (0.5..=2.9).contains(&z))
+                        {
+                            // The car's body and the van's box: the same paint.
+                            Some([150.0, 28.0, 30.0])
+                        } else if (y - 1.5).powi(2) + (z - 5.5).powi(2) <= 0.15f64.powi(2) {
+                            Some([255.0, 42.0, 30.0])
+                        } else {
+                            None
+                        }
+                    }
+                };
+                for light in [1.0f32, 0.55] {
+                    let w = frame(&wide, &things(wide), light, 1.0);
+                    let t = frame(&tele, &things(tele), light, 1.0);
+                    assert_eq!(read(&w, &t, &[]), None, "at {dist_m} m, light {light}");
+                }
             }
         }
     }

@@ -596,6 +596,22 @@ pub fn is_sign_red(x: Sample, gain: f32) -> bool {
     r > 45.0 * gain + 2.5 * x.s && r - 1.8 * g.max(b) > m && r > 2.0 * g.max(b)
 }
 
+/// Stop-sign red seen through haze or in shade: the red channel exceeds green and blue by
+/// a margin (20 at daylight exposure, scaled by the exposure `gain`), and green and blue
+/// are alike — they differ by under 0.3 of that margin: a red, not the orange of a cone,
+/// the brown of brick or the pink of a dusk sky (0.5–0.7 for those). Fog adds the same grey
+/// airlight to every channel (Koschmieder), which lowers the channels' ratios —
+/// [`is_sign_red`]'s test fails for a shaded face 20 m away in mid rain at twilight,
+/// (101, 66, 68) — but scales their differences only by the transmission, so the hue test
+/// holds at any visibility.
+#[inline]
+pub fn is_sign_red_hazed(x: Sample, gain: f32) -> bool {
+    let [r, g, b] = x.c;
+    let top = g.max(b);
+    let m = 3.0 * x.s * std::f32::consts::SQRT_2;
+    r - top > 20.0 * gain + m && (g - b).abs() < 0.3 * (r - top) + m
+}
+
 /// A box-filtered reading of part of a frame, between pixel centres: what registration
 /// compares. Each pixel reads as the mean of the `k × k` pixels around it (clamped to the
 /// frame), which divides the noise by `k` and turns a hard edge into a ramp `k` pixels wide,
