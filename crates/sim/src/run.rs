@@ -554,20 +554,7 @@ pub fn run_route_with(
             let mut present = false;
             if rco.is_some() {
                 let clock = Instant::now();
-                let mut lost: Vec<Lost> = Vec::new();
-                for (calib, frame) in [(&wide, &w.frame), (&tele, &te_frame)] {
-                    for d in lost_regions(frame) {
-                        lost.push((
-                            calib.id,
-                            [
-                                f64::from(d.x0),
-                                f64::from(d.y0),
-                                f64::from(d.x1),
-                                f64::from(d.y1),
-                            ],
-                        ));
-                    }
-                }
+                let lost = lost_in(&[(&wide, &w.frame), (&tele, &te_frame)]);
                 let wide_lost = lost.iter().any(|(c, _)| *c == CameraId::FrontWide);
                 present = wide_lost || (rco_active && deficit_side);
                 if present && log::log_enabled!(log::Level::Trace) {
@@ -1045,6 +1032,27 @@ fn lost_regions(frame: &Frame) -> Vec<fogline_planner::detect::DeficitSeen> {
         frame.height() as usize,
     )
     .unwrap_or_default()
+}
+
+/// The lost regions the perception finds in each camera's frame, as the planner takes
+/// them (camera, pixel box `[x0, y0, x1, y1]`).
+pub fn lost_in(views: &[(&CameraCalib, &Frame)]) -> Vec<Lost> {
+    views
+        .iter()
+        .flat_map(|(calib, frame)| {
+            lost_regions(frame).into_iter().map(|d| {
+                (
+                    calib.id,
+                    [
+                        f64::from(d.x0),
+                        f64::from(d.y0),
+                        f64::from(d.x1),
+                        f64::from(d.y1),
+                    ],
+                )
+            })
+        })
+        .collect()
 }
 
 /// One view of the override's observation, from pixels only: the frame, the lost regions

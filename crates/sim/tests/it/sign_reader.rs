@@ -7,7 +7,7 @@
 //! reader was measured on town seed 41 (`measure_the_reader`, ignored: it prints a
 //! table) and is checked here on town seeds 57 and 58.
 
-use fogline_perturb::frame::{Frame, FrameKey};
+use fogline_perturb::frame::FrameKey;
 use fogline_planner::perceive::{Knowing, Lost, perceive_knowing};
 use fogline_sim::geom::{P2, add, right_of};
 use fogline_sim::route;
@@ -107,20 +107,7 @@ fn read_at(
     let w = see(&sc, &wide, &lens, FrameKey::new(key, 0, 0));
     let t = see(&sc, &tele, &lens, FrameKey::new(key, 1, 0));
     let masked = !w.deficits.is_empty() || !t.deficits.is_empty();
-    let mut lost: Vec<Lost> = Vec::new();
-    for (calib, frame) in [(&wide, &w.frame), (&tele, &t.frame)] {
-        for d in lost_regions(frame) {
-            lost.push((
-                calib.id,
-                [
-                    f64::from(d.x0),
-                    f64::from(d.y0),
-                    f64::from(d.x1),
-                    f64::from(d.y1),
-                ],
-            ));
-        }
-    }
+    let lost = fogline_sim::run::lost_in(&[(&wide, &w.frame), (&tele, &t.frame)]);
     let history = [EgoPose {
         t_s: 0.0,
         x_m: 0.0,
@@ -158,15 +145,6 @@ fn read_at(
         wide_masked: !w.deficits.is_empty(),
         tele_masked: !t.deficits.is_empty(),
     }
-}
-
-fn lost_regions(frame: &Frame) -> Vec<fogline_planner::detect::DeficitSeen> {
-    fogline_planner::detect::find_deficits(
-        frame.data(),
-        frame.width() as usize,
-        frame.height() as usize,
-    )
-    .unwrap_or_default()
 }
 
 /// The ego in the approach lane of `sign`, its cameras `dist_m` short of the sign (along
