@@ -19,10 +19,11 @@
 //! // A cubic is reproduced exactly by a not-a-knot spline (four or more samples).
 //! let t = [0.0, 1.0, 2.5, 3.0, 4.0];
 //! let y: Vec<[f64; 3]> = t.iter().map(|&x| [x * x * x, 2.0 * x, 1.0]).collect();
-//! let s = CubicSpline::fit(&t, &y).unwrap();
-//! let v = s.eval(1.7).unwrap();
+//! let s = CubicSpline::fit(&t, &y)?;
+//! let v = s.eval(1.7).ok_or("1.7 s is inside the samples")?;
 //! assert!((v[0] - 1.7f64.powi(3)).abs() < 1e-12 && (v[1] - 3.4).abs() < 1e-12);
 //! assert!(s.eval(4.5).is_none()); // no extrapolation
+//! # Ok::<(), String>(())
 //! ```
 
 /// A cubic spline through 3-vectors with not-a-knot end conditions (SciPy's default).
