@@ -148,8 +148,9 @@ pub struct Perception {
     /// The frames' measured quality.
     pub quality: ImageQuality,
     /// The nearest object in the lane to the left (its lateral extents relative to that
-    /// lane's centre, one lane width left of the ego lane's); only looked for when asked
-    /// ([`perceive_objects`]), `None` otherwise.
+    /// lane's centre, one lane width left of the ego lane's; its `speed` signed, negative
+    /// for one coming towards the car); only looked for when asked ([`perceive_objects`],
+    /// [`Knowing::left_lane`]), `None` otherwise.
     pub left_object: Option<LeadSeen>,
 }
 
@@ -403,11 +404,15 @@ pub struct Knowing<'a> {
     /// (under 2 m of path: a car standing or creeping). A car waiting in a junction to turn
     /// looks along the arc it is about to drive, not straight at the corner ahead of it.
     pub nav_kappa: Option<f64>,
+    /// Look for the nearest object in the lane to the left as well
+    /// ([`Perception::left_object`], as [`perceive_objects`] does): a car about to enter a
+    /// junction asks, to see who is coming or starting across it.
+    pub left_lane: bool,
 }
 
 /// [`perceive`] knowing what [`Knowing`] holds. With nothing known it equals [`perceive`].
 pub fn perceive_knowing(input: &PlannerInput<'_>, knowing: &Knowing<'_>) -> Perception {
-    perceive_with(input, false, knowing)
+    perceive_with(input, knowing.left_lane, knowing)
 }
 
 /// Whether `(u, v)` of `camera`'s latest frame lies in or next to a lost region: within
@@ -578,7 +583,14 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool, knowing: &Knowing<
             .count()
             == 0;
     // Its motion, tracked over the frames (for the lead only: the detector runs more often).
-    let lead = lead.map(|l| lead_motion(input, &eyes, &centre, speed, l));
+    // In the ego lane a road user is only ever read as going the car's way (or standing).
+    let lead = lead.map(|l| {
+        let m = lead_motion(input, &eyes, &centre, speed, l);
+        LeadSeen {
+            speed: m.speed.max(0.0),
+            ..m
+        }
+    });
     // Anything on a crossing that stands (along the lane, within its speed's uncertainty)
     // or moves across the lane is a road user crossing there.
     let lead = lead.map(|mut l| {

@@ -36,6 +36,14 @@
 //! stopped: after that 1.5 s stop the agent treats stop-sign decisions as "keep lane" for
 //! the next 30 m driven.
 //!
+//! **Junctions** ([`JunctionGap`]): a car within 15 m of the entry to its route's next
+//! junction that is slower than 3 m/s (starting after a stop sign, a red light or a queue),
+//! or that turns left there, accepts a gap first. The perception then also looks at the
+//! oncoming lane, and the car holds short of the entry while a vehicle is seen moving across
+//! its path ahead or in the oncoming lane (for a left turn: any oncoming vehicle within 45 m
+//! not seen standing), and for 1.2 s after — not at a green light unless it turns left, and
+//! at most 10 s at one junction.
+//!
 //! **Unstick** (like TransFuser's creeping): after 55 s standing still, the agent ignores the
 //! planner for 4 s and drives at up to 4 m/s; the count restarts once it moves.
 //!
@@ -199,6 +207,7 @@ pub struct Baseline {
     hidden_stop: bool,
     /// Seconds since a vehicle was last seen crossing the ego's path ahead.
     cross_quiet_s: f64,
+    junction_gap: JunctionGap,
     objects: Vec<ObjectSeen>,
     /// A planner under test that drives instead of the baseline's rules.
     driver: Option<Driver>,
@@ -253,7 +262,134 @@ pub struct AgentInput<'a> {
     /// the history carries it in its headings while the car moves; standing, the planner
     /// gets it this way.
     pub nav_kappa: f64,
+    /// The route's next junction, as the global plan gives it (CARLA agents get their
+    /// route's turns the same way).
+    pub junction: Option<JunctionAhead>,
 }
+
+/// The route's next junction seen from the car.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JunctionAhead {
+    /// Route distance left to where the path through the junction starts, m (negative once
+    /// inside it).
+    pub entry_m: f64,
+    /// The route turns left there (across the oncoming lane).
+    pub left_turn: bool,
+}
+
+/// A car slower than this, within [`JUNCTION_YIELD_REACH_M`] of a junction's entry, is
+/// entering it from (near) a standstill — after a stop sign, a red light or a queue — and
+/// accepts a gap first: it does not enter while a vehicle is seen moving across its path
+/// or in the oncoming lane, m/s.
+pub const JUNCTION_START_MPS: f64 = 3.0;
+
+/// How far before a junction's entry the gap check applies, m (the stop line is 9 m
+/// before it).
+pub const JUNCTION_YIELD_REACH_M: f64 = 15.0;
+
+/// A car entering a junction from a standstill goes once no vehicle has been seen moving
+/// across its path or in the oncoming lane for this long, s.
+pub const JUNCTION_QUIET_S: f64 = 1.2;
+
+/// The gap check holds the car at most this long at one junction (a vehicle read as moving
+/// that never leaves must not hold it for good; traffic yields to a car that has stood at
+/// its line longer), s.
+pub const JUNCTION_HOLD_MAX_S: f64 = 10.0;
+
+/// A vehicle seen moving faster than this (along or across its lane) holds a car waiting
+/// to enter a junction, m/s.
+pub const JUNCTION_MOVING_MPS: f64 = 1.0;
+
+/// Gap acceptance at a junction entered from (near) a standstill (see
+/// [`JUNCTION_START_MPS`]): the car does not enter while a vehicle is seen moving across its
+/// path ahead or in the oncoming lane — one that stopped at its line before the car and now
+/// takes its turn, one turning across, one coming through — unless a green light gives it
+/// the way and it does not turn across; it goes once none has been seen for
+/// [`JUNCTION_QUIET_S`], or after [`JUNCTION_HOLD_MAX_S`] held at that junction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JunctionGap {
+    /// Seconds since a vehicle was last seen moving across the path or in the oncoming
+    /// lane.
+    pub quiet_s: f64,
+    /// Seconds held at the junction at `at_m`.
+    pub held_s: f64,
+    /// The junction's entry in distance driven, m.
+    pub at_m: f64,
+}
+
+impl Default for JunctionGap {
+    fn default() -> Self {
+        Self {
+            quiet_s: 0.0,
+            held_s: 0.0,
+            at_m: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl JunctionGap {
+    /// Whether the vehicle ahead (`lead`) moves across the path within 30 m, and whether the
+    /// one in the oncoming lane (`left`) within [`ONCOMING_REACH_M`] is a conflict: moving
+    /// (tracked over three frames or more and faster than [`JUNCTION_MOVING_MPS`]; the
+    /// oncoming one's speed along its lane beyond two standard errors) — or, for a car about
+    /// to turn left across that lane (`left_turn`), any oncoming vehicle not seen standing:
+    /// one coming at speed moves too far between frames to be tracked, and the turn needs
+    /// the lane clear (the towns' traffic turns left on the same terms). Perceived speeds
+    /// are `speed_scale` times the true ones (see [`crate::run`]).
+    pub fn conflicts(
+        lead: Option<&LeadSeen>,
+        left: Option<&LeadSeen>,
+        left_turn: bool,
+        speed_scale: f64,
+    ) -> (bool, bool) {
+        let tracked = |l: &LeadSeen| l.track.iter().flatten().count() >= 3;
+        let moving = JUNCTION_MOVING_MPS * speed_scale;
+        let across = lead.is_some_and(|l| {
+            l.kind == ObjectKind::Vehicle
+                && l.contact_x < 30.0
+                && tracked(l)
+                && l.lateral_speed.abs() > moving
+        });
+        let oncoming = left.is_some_and(|l| {
+            let seen_moving = tracked(l)
+                && (l.speed.abs() > moving + 2.0 * l.speed_se || l.lateral_speed.abs() > moving);
+            let seen_standing = tracked(l) && !seen_moving;
+            l.kind == ObjectKind::Vehicle
+                && l.contact_x < ONCOMING_REACH_M
+                && (seen_moving || (left_turn && !seen_standing))
+        });
+        (across, oncoming)
+    }
+
+    /// One planning step `dt_s` long before the junction whose entry is at `entry_at_m` in
+    /// distance driven: `conflict` is what [`JunctionGap::conflicts`] saw, `given_way` a
+    /// green light for a car that does not turn across. Whether to hold the car.
+    pub fn step(&mut self, entry_at_m: f64, conflict: bool, given_way: bool, dt_s: f64) -> bool {
+        if (entry_at_m - self.at_m).abs() > 5.0 {
+            *self = Self {
+                at_m: entry_at_m,
+                ..Self::default()
+            };
+        }
+        self.quiet_s = if conflict { 0.0 } else { self.quiet_s + dt_s };
+        let hold =
+            !given_way && self.quiet_s < JUNCTION_QUIET_S && self.held_s < JUNCTION_HOLD_MAX_S;
+        if hold {
+            self.held_s += dt_s;
+        }
+        hold
+    }
+
+    /// The car is not waiting to enter a junction (too fast, or not near one): what it saw
+    /// before counts no longer.
+    pub fn leave(&mut self) {
+        self.quiet_s = 0.0;
+    }
+}
+
+/// Oncoming vehicles farther than this do not hold a car at a junction's entry, m (the far
+/// side's stop line is about 30 m from a car at its own).
+pub const ONCOMING_REACH_M: f64 = 45.0;
 
 impl Baseline {
     /// A fresh agent.
@@ -278,6 +414,7 @@ impl Baseline {
             lost: Vec::new(),
             hidden_stop: false,
             cross_quiet_s: 0.0,
+            junction_gap: JunctionGap::default(),
             objects: Vec::new(),
             driver: None,
         }
@@ -399,9 +536,18 @@ impl Baseline {
         };
         let p = &self.params;
         let cruise = p.cruise_mps.min(turn_cap_mps);
+        // About to enter a junction from (near) a standstill: the perception looks at the
+        // oncoming lane too, for the gap check below.
+        let entering = input.junction.filter(|j| {
+            self.driver.is_none()
+                && (speed_mps < JUNCTION_START_MPS || j.left_turn)
+                && j.entry_m > 0.5
+                && j.entry_m < JUNCTION_YIELD_REACH_M
+        });
         let knowing = fogline_planner::perceive::Knowing {
             lost: &self.lost,
             nav_kappa: Some(input.nav_kappa),
+            left_lane: entering.is_some(),
         };
         let out = self.planner.plan_knowing(&pin, &knowing);
         if let Some(driver) = &self.driver {
@@ -581,6 +727,47 @@ impl Baseline {
             }
             _ => cruise,
         };
+        // Gap acceptance at a junction entered from (near) a standstill: not while a vehicle
+        // is seen moving across the path ahead or in the oncoming lane (one that stopped at
+        // its line before the car and now takes its turn, one turning across, one coming
+        // through), unless a green light gives the way and the car does not turn across.
+        match entering {
+            Some(j) => {
+                let (across, oncoming) = JunctionGap::conflicts(
+                    perc.lead.as_ref(),
+                    perc.left_object.as_ref(),
+                    j.left_turn,
+                    speed_scale,
+                );
+                let green = perc
+                    .light
+                    .is_some_and(|(l, _)| l == fogline_planner::perceive::Lamp::Green);
+                let hold = self.junction_gap.step(
+                    odometer_m + j.entry_m,
+                    across || oncoming,
+                    green && !j.left_turn,
+                    0.1 * speed_scale,
+                );
+                if hold {
+                    let here = odometer_m + 0.6 + speed_mps * speed_mps / (2.0 * p.stop_decel_mps2);
+                    stop_at = Some(stop_at.map_or(here, |s: f64| s.min(here)));
+                    log::debug!(
+                        "junction gap at {odometer_m:.1} m: entry in {:.1} m, across {across}, \
+                         oncoming {oncoming}, {:?}; left {:?}",
+                        j.entry_m,
+                        self.junction_gap,
+                        perc.left_object.map(|l| (
+                            (l.contact_x * 10.0).round() / 10.0,
+                            (l.speed * 10.0).round() / 10.0,
+                            (l.speed_se * 10.0).round() / 10.0,
+                            (l.lateral_speed * 10.0).round() / 10.0,
+                            l.track.iter().flatten().count()
+                        ))
+                    );
+                }
+            }
+            None => self.junction_gap.leave(),
+        }
         // Whatever the decision, the car keeps its distance to the road user ahead in its
         // lane: the agent steers along its route and never leaves the lane, so a stop, a
         // turn or a pass is driven behind whoever is in front.
@@ -1121,6 +1308,102 @@ mod tests {
             confidence: 1.0,
             track: [None; 4],
         }
+    }
+
+    #[test]
+    fn a_car_enters_a_junction_only_once_nothing_moves_across_it_or_towards_it() {
+        // Frames 0.4 s apart read as 0.1 s: perceived speeds are four times the true ones.
+        let scale = 4.0;
+        let tracked = |mut l: LeadSeen, frames: usize| {
+            for (k, t) in l.track.iter_mut().enumerate().take(frames) {
+                *t = Some(l.contact_x + 0.1 * k as f64);
+            }
+            l
+        };
+        // Across the junction at its own line, standing (its speed read with some scatter):
+        // no conflict; starting towards the car at 1.5 m/s, or coming through: a conflict.
+        let standing = tracked(vehicle(26.0, 0.8 * scale), 4);
+        let starting = tracked(vehicle(26.0, -1.5 * scale), 4);
+        assert_eq!(
+            JunctionGap::conflicts(None, Some(&standing), false, scale),
+            (false, false)
+        );
+        assert_eq!(
+            JunctionGap::conflicts(None, Some(&starting), false, scale),
+            (false, true)
+        );
+        // Not when seen in fewer than three frames, nor beyond the reach, nor a person.
+        let glimpse = tracked(vehicle(26.0, -6.0 * scale), 2);
+        assert_eq!(
+            JunctionGap::conflicts(None, Some(&glimpse), false, scale),
+            (false, false)
+        );
+        let far = tracked(vehicle(ONCOMING_REACH_M + 1.0, -6.0 * scale), 4);
+        assert_eq!(
+            JunctionGap::conflicts(None, Some(&far), false, scale),
+            (false, false)
+        );
+        let walker = LeadSeen {
+            kind: ObjectKind::Person,
+            ..starting
+        };
+        assert_eq!(
+            JunctionGap::conflicts(None, Some(&walker), false, scale),
+            (false, false)
+        );
+        // A vehicle crossing the path ahead; one ahead driving away is no conflict.
+        let crossing = LeadSeen {
+            lateral_speed: -4.0 * scale,
+            ..tracked(vehicle(12.0, 0.0), 3)
+        };
+        assert_eq!(
+            JunctionGap::conflicts(Some(&crossing), None, false, scale),
+            (true, false)
+        );
+        let away = tracked(vehicle(12.0, 5.0 * scale), 4);
+        assert_eq!(
+            JunctionGap::conflicts(Some(&away), None, false, scale),
+            (false, false)
+        );
+
+        // Turning left across the oncoming lane: an oncoming vehicle too quick to track is
+        // a conflict, one seen standing is not.
+        assert_eq!(
+            JunctionGap::conflicts(None, Some(&glimpse), true, scale),
+            (false, true)
+        );
+        assert_eq!(
+            JunctionGap::conflicts(None, Some(&standing), true, scale),
+            (false, false)
+        );
+
+        // Held while the conflict lasts and for JUNCTION_QUIET_S after it.
+        let dt = 0.4;
+        let mut gap = JunctionGap::default();
+        for _ in 0..5 {
+            assert!(gap.step(200.0, true, false, dt));
+        }
+        let mut quiet_steps = 0;
+        while gap.step(200.2, false, false, dt) {
+            quiet_steps += 1;
+            assert!(quiet_steps < 10);
+        }
+        let quiet = |steps: usize| steps as f64 * dt;
+        assert!(quiet(quiet_steps) < JUNCTION_QUIET_S);
+        assert!(quiet(quiet_steps + 1) >= JUNCTION_QUIET_S - 1e-9);
+        // A green light gives the way (to a car that does not turn across).
+        let mut gap = JunctionGap::default();
+        assert!(!gap.step(300.0, true, true, dt));
+        // A conflict that never ends holds the car at most JUNCTION_HOLD_MAX_S.
+        let mut gap = JunctionGap::default();
+        let mut held = 0.0;
+        while gap.step(400.0, true, false, dt) {
+            held += dt;
+            assert!(held <= JUNCTION_HOLD_MAX_S + dt);
+        }
+        assert!(held >= JUNCTION_HOLD_MAX_S - 1e-9);
+        // The next junction starts afresh.
+        assert!(gap.step(520.0, true, false, dt));
     }
 
     #[test]

@@ -35,7 +35,7 @@ use fogline_types::planner::Planner;
 use serde::{Deserialize, Serialize};
 
 use crate::SimError;
-use crate::agent::{AgentInput, AgentParams, Baseline};
+use crate::agent::{AgentInput, AgentParams, Baseline, JunctionAhead};
 use crate::config::Config;
 use crate::geom::{Obb, P2, dist, dot, sub, within};
 use crate::route::Route;
@@ -587,6 +587,10 @@ pub fn run_route_with(
                         history: &hist,
                         time_s: t,
                         nav_kappa,
+                        junction: route.next_junction(route_s).map(|j| JunctionAhead {
+                            entry_m: j.s_entry_m - route_s,
+                            left_turn: j.turn() == 1,
+                        }),
                     },
                     ego.speed_mps,
                     turn_cap,

@@ -134,6 +134,7 @@ fn read_at(
             &Knowing {
                 lost,
                 nav_kappa: Some(0.0),
+                ..Knowing::default()
             },
         )
         .stop_sign
