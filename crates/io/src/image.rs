@@ -106,24 +106,12 @@ pub fn encode_with(
     format: ImageFormat,
     speed: PngSpeed,
 ) -> Result<Vec<u8>, String> {
-    let expected = width as usize * height as usize * 3;
-    if rgb.len() != expected {
-        return Err(format!(
-            "{} bytes, expected {expected} ({width}x{height} RGB8)",
-            rgb.len()
-        ));
-    }
+    check_frame(rgb.len(), width, height, format)?;
+    let expected = rgb.len();
     match format {
         ImageFormat::Png => encode_png(rgb, width, height, ExtendedColorType::Rgb8, speed),
         ImageFormat::Jpeg { quality } => {
-            if !(1..=100).contains(&quality) {
-                return Err(format!("JPEG quality {quality} is not in 1..=100"));
-            }
-            let (Ok(w), Ok(h)) = (u16::try_from(width), u16::try_from(height)) else {
-                return Err(format!(
-                    "{width}x{height}: JPEG frames are at most 65535 pixels on a side"
-                ));
-            };
+            let (w, h) = (width as u16, height as u16); // checked above
             let mut out = Vec::with_capacity(expected / 8 + 1024);
             let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
             encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
@@ -133,6 +121,29 @@ pub fn encode_with(
             Ok(out)
         }
     }
+}
+
+/// Whether a frame of `len` bytes, `width × height` RGB8, can be encoded as `format`: the
+/// checks [`encode_with`] makes before encoding, with its error text, so a caller that
+/// encodes later (in a pipeline) can refuse bad input up front.
+pub fn check_frame(len: usize, width: u32, height: u32, format: ImageFormat) -> Result<(), String> {
+    let expected = width as usize * height as usize * 3;
+    if len != expected {
+        return Err(format!(
+            "{len} bytes, expected {expected} ({width}x{height} RGB8)"
+        ));
+    }
+    if let ImageFormat::Jpeg { quality } = format {
+        if !(1..=100).contains(&quality) {
+            return Err(format!("JPEG quality {quality} is not in 1..=100"));
+        }
+        if u16::try_from(width).is_err() || u16::try_from(height).is_err() {
+            return Err(format!(
+                "{width}x{height}: JPEG frames are at most 65535 pixels on a side"
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Encodes a PNG of any colour type the `image` crate writes (RGB8 frames, 16-bit grey
@@ -178,12 +189,11 @@ fn worth_compressing(
     if row == 0 || height < 16 {
         return Ok(true);
     }
-    let sample: Vec<u8> = data
-        .chunks_exact(row)
-        .step_by(8)
-        .flatten()
-        .copied()
-        .collect();
+    // Row by row (a byte-wise iterator copy costs as much as the sample's deflate).
+    let mut sample = Vec::with_capacity(row * (height as usize).div_ceil(8));
+    for r in data.chunks_exact(row).step_by(8) {
+        sample.extend_from_slice(r);
+    }
     let rows = (sample.len() / row) as u32;
     let mut out = Vec::with_capacity(sample.len() / 2 + 1024);
     PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Sub)

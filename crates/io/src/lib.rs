@@ -13,7 +13,7 @@ pub mod progress;
 
 pub use atomic::{FileSet, write_atomic, write_atomic_with};
 pub use image::{
-    DecodedRgb, ImageFormat, PngSpeed, data_url, decode_rgb, encode, encode_png, encode_with,
-    encoder_name,
+    DecodedRgb, ImageFormat, PngSpeed, check_frame, data_url, decode_rgb, encode, encode_png,
+    encode_with, encoder_name,
 };
 pub use progress::Progress;

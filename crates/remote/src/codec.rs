@@ -94,7 +94,7 @@ pub(crate) fn decode_capped(bytes: &[u8], max_pixels: u64) -> Result<Decoded, St
 }
 
 /// Work below this many bytes is not worth a thread.
-const PARALLEL_BYTES: usize = 1 << 20;
+pub(crate) const PARALLEL_BYTES: usize = 1 << 20;
 
 /// Applies `f` to every item, spread over the machine's cores when `bytes` (the work's
 /// size) is large enough to pay for the threads; the results keep the items' order.

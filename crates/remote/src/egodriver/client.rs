@@ -1,6 +1,7 @@
 //! The egodriver client: a remote policy as a [`Planner`].
 
 use std::future::Future;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
 use fogline_types::clip::{CameraCalib, DT_S, Decision, HORIZON, PlannerOutput, Trajectory};
@@ -122,13 +123,19 @@ impl Client {
         &self.opts
     }
 
-    async fn session(&self, session: Session) -> Result<PlannerOutput, PlanFailure> {
+    async fn session(
+        &self,
+        start: DriveSessionRequest,
+        cameras: Vec<CameraStream>,
+        ego: RolloutEgoTrajectory,
+        drive: DriveRequest,
+    ) -> Result<PlannerOutput, PlanFailure> {
         let mut rpc = EgodriverServiceClient::new(self.channel.clone())
             .max_decoding_message_size(MAX_MESSAGE_BYTES)
             .max_encoding_message_size(MAX_MESSAGE_BYTES);
-        let uuid = session.start.session_uuid.clone();
+        let uuid = start.session_uuid.clone();
         let timeout = self.opts.timeout;
-        let mut start = tonic::Request::new(session.start);
+        let mut start = tonic::Request::new(start);
         start.metadata_mut().insert(
             CONTRACT_METADATA_KEY,
             MetadataValue::from(CONTRACT_REVISION),
@@ -140,7 +147,7 @@ impl Client {
             Err(e) if e.kind == FailureKind::Unavailable => return Err(e),
             Err(e) => Err(e),
             Ok(_) => {
-                self.observe_and_drive(&mut rpc, session.images, session.ego, session.drive)
+                self.observe_and_drive(&mut rpc, &uuid, cameras, ego, drive)
                     .await
             }
         };
@@ -164,26 +171,49 @@ impl Client {
     async fn observe_and_drive(
         &self,
         rpc: &mut EgodriverServiceClient<Channel>,
-        images: Vec<RolloutCameraImage>,
+        uuid: &str,
+        cameras: Vec<CameraStream>,
         ego: RolloutEgoTrajectory,
         drive: DriveRequest,
     ) -> Result<PlannerOutput, PlanFailure> {
         let timeout = self.opts.timeout;
-        // One task per camera, each sending its frames oldest first: the cameras' frames
-        // travel and are decoded by the server at once, each camera's still in order.
-        let mut cameras: Vec<Vec<RolloutCameraImage>> = Vec::new();
-        for image in images {
-            let id = |i: &RolloutCameraImage| i.camera_image.as_ref().map(|c| c.logical_id.clone());
-            match cameras.last_mut() {
-                Some(last) if last.first().map(id) == Some(id(&image)) => last.push(image),
-                _ => cameras.push(vec![image]),
-            }
-        }
+        // One task per camera, each sending its frames oldest first as the encoders finish
+        // them: the cameras' frames travel and are decoded by the server at once (and while
+        // later frames are still being encoded), each camera's still in order.
         let mut tasks = tokio::task::JoinSet::new();
-        for (k, frames) in cameras.into_iter().enumerate() {
+        for (k, camera) in cameras.into_iter().enumerate() {
             let mut rpc = rpc.clone();
+            let uuid = uuid.to_string();
             tasks.spawn(async move {
-                for image in frames {
+                let CameraStream {
+                    logical_id,
+                    label,
+                    frames,
+                } = camera;
+                for (j, (t_us, encoded)) in frames.into_iter().enumerate() {
+                    let bytes = match encoded.await {
+                        Ok(Ok(bytes)) => bytes,
+                        Ok(Err(e)) => {
+                            return Err((k, input_failure(format!("{label} frame {j}: {e}"))));
+                        }
+                        Err(_) => {
+                            return Err((
+                                k,
+                                input_failure(format!(
+                                    "{label} frame {j}: the encoder stopped before the frame"
+                                )),
+                            ));
+                        }
+                    };
+                    let image = RolloutCameraImage {
+                        session_uuid: uuid.clone(),
+                        camera_image: Some(CameraImage {
+                            frame_start_us: t_us,
+                            frame_end_us: t_us,
+                            image_bytes: bytes,
+                            logical_id: logical_id.clone(),
+                        }),
+                    };
                     call(
                         "submit_image_observation",
                         timeout,
@@ -236,8 +266,86 @@ impl Planner for Client {
     }
 
     fn plan(&self, request: &PlanRequest<'_>) -> Result<PlannerOutput, PlanFailure> {
-        let session = build_session(request, self.opts.image_format)?;
-        self.runtime.block_on(self.session(session))
+        let format = self.opts.image_format;
+        let Session {
+            start,
+            cameras,
+            ego,
+            drive,
+        } = build_session(request, format)?;
+        // The frames are encoded on worker threads while the session runs: `start_session`
+        // goes out at once, and each frame is sent (and decoded by the server) as soon as it
+        // is ready rather than after every frame is encoded. Every camera's oldest frame is
+        // encoded first, then every camera's next one, so all cameras start sending early.
+        let most = cameras.iter().map(|c| c.frames.len()).max().unwrap_or(0);
+        let jobs: Vec<(usize, usize)> = (0..most)
+            .flat_map(|j| {
+                cameras
+                    .iter()
+                    .enumerate()
+                    .filter(move |(_, c)| j < c.frames.len())
+                    .map(move |(k, _)| (k, j))
+            })
+            .collect();
+        let mut senders = Vec::with_capacity(jobs.len());
+        let mut receivers: Vec<Vec<_>> = cameras.iter().map(|_| Vec::new()).collect();
+        for &(k, _) in &jobs {
+            let (tx, rx) = tokio::sync::oneshot::channel::<Result<Vec<u8>, String>>();
+            senders.push(std::sync::Mutex::new(Some(tx)));
+            // Jobs list each camera's frames oldest first: its receivers come in order.
+            receivers[k].push(rx);
+        }
+        let streams: Vec<CameraStream> = cameras
+            .iter()
+            .zip(receivers)
+            .map(|(c, rx)| CameraStream {
+                logical_id: c.calib.id.name().to_string(),
+                label: c.calib.id.to_string(),
+                frames: c.times.iter().copied().zip(rx).collect(),
+            })
+            .collect();
+        let bytes: usize = cameras
+            .iter()
+            .flat_map(|c| &c.frames)
+            .map(|f| f.len())
+            .sum();
+        let workers = if bytes < codec::PARALLEL_BYTES {
+            1
+        } else {
+            std::thread::available_parallelism()
+                .map_or(1, |n| n.get())
+                .min(jobs.len())
+                .max(1)
+        };
+        let next = AtomicUsize::new(0);
+        let stop = AtomicBool::new(false);
+        std::thread::scope(|s| {
+            for _ in 0..workers {
+                s.spawn(|| {
+                    while !stop.load(Ordering::Relaxed) {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(&(k, j)) = jobs.get(i) else { break };
+                        let c = &cameras[k];
+                        let encoded =
+                            codec::encode(c.frames[j], c.calib.width, c.calib.height, format);
+                        let tx = senders[i]
+                            .lock()
+                            .unwrap_or_else(std::sync::PoisonError::into_inner)
+                            .take();
+                        if let Some(tx) = tx {
+                            // The session may have ended already (a failure): nobody waits.
+                            let _ = tx.send(encoded);
+                        }
+                    }
+                });
+            }
+            let out = self
+                .runtime
+                .block_on(self.session(start, streams, ego, drive));
+            // Frames not yet encoded are not needed any more (the session ended early).
+            stop.store(true, Ordering::Relaxed);
+            out
+        })
     }
 }
 
@@ -309,19 +417,42 @@ impl std::fmt::Display for ConnectFailure {
 
 impl std::error::Error for ConnectFailure {}
 
-/// The messages of one session, built (and the frames encoded) before any RPC.
-struct Session {
+/// The messages of one session, built (and the frames checked) before any RPC; the frames
+/// are encoded while the session runs.
+struct Session<'a> {
     start: DriveSessionRequest,
-    images: Vec<RolloutCameraImage>,
+    cameras: Vec<CameraFrames<'a>>,
     ego: RolloutEgoTrajectory,
     drive: DriveRequest,
 }
+
+/// A camera's frames to send, oldest first, with their wire times.
+struct CameraFrames<'a> {
+    calib: &'a CameraCalib,
+    frames: Vec<&'a [u8]>,
+    times: Vec<u64>,
+}
+
+/// What a camera's task sends: its frames, oldest first, as the encoders deliver them.
+struct CameraStream {
+    logical_id: String,
+    /// The camera's name in error messages.
+    label: String,
+    /// Wire time and the encoded frame (or why it could not be encoded).
+    frames: Vec<(u64, EncodedFrame)>,
+}
+
+/// A frame being encoded: its bytes, or why it could not be encoded, when the encoder is done.
+type EncodedFrame = tokio::sync::oneshot::Receiver<Result<Vec<u8>, String>>;
 
 fn input_failure(m: String) -> PlanFailure {
     PlanFailure::new(FailureKind::Input, m)
 }
 
-fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Session, PlanFailure> {
+fn build_session<'r>(
+    request: &'r PlanRequest<'_>,
+    format: ImageFormat,
+) -> Result<Session<'r>, PlanFailure> {
     let input = &request.input;
     if input.cameras.is_empty() {
         return Err(input_failure("the request has no camera".into()));
@@ -330,33 +461,26 @@ fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Sessi
         return Err(input_failure("the request has no ego history".into()));
     }
     let uuid = codec::session_uuid();
+    let mut declared = Vec::with_capacity(input.cameras.len());
     let mut cameras = Vec::with_capacity(input.cameras.len());
-    // (calibration, frame index, frame count, pixels), camera by camera, oldest first.
-    let mut jobs = Vec::new();
     for cam in &input.cameras {
         let c = &cam.calib;
         c.validate().map_err(input_failure)?;
-        cameras.push(declare_camera(c));
+        declared.push(declare_camera(c));
         let n = cam.frames.len();
-        jobs.extend(cam.frames.iter().enumerate().map(|(j, f)| (c, j, n, *f)));
+        // What the encoder would refuse is refused now, before the session opens.
+        for (j, f) in cam.frames.iter().enumerate() {
+            fogline_io::check_frame(f.len(), c.width, c.height, format)
+                .map_err(|e| input_failure(format!("{} frame {j}: {e}", c.id)))?;
+        }
+        cameras.push(CameraFrames {
+            calib: c,
+            frames: cam.frames.clone(),
+            times: (0..n)
+                .map(|j| wire_time(-DT_S * (n - 1 - j) as f64))
+                .collect(),
+        });
     }
-    let bytes = jobs.iter().map(|job| job.3.len()).sum();
-    let images = codec::par_map(&jobs, bytes, |&(c, j, n, frame)| {
-        let bytes = codec::encode(frame, c.width, c.height, format)
-            .map_err(|e| input_failure(format!("{} frame {j}: {e}", c.id)))?;
-        let t_us = wire_time(-DT_S * (n - 1 - j) as f64);
-        Ok(RolloutCameraImage {
-            session_uuid: uuid.clone(),
-            camera_image: Some(CameraImage {
-                frame_start_us: t_us,
-                frame_end_us: t_us,
-                image_bytes: bytes,
-                logical_id: c.id.name().to_string(),
-            }),
-        })
-    })
-    .into_iter()
-    .collect::<Result<Vec<_>, PlanFailure>>()?;
     let mut poses = Vec::with_capacity(input.ego_history.len());
     let mut states = Vec::with_capacity(input.ego_history.len());
     for (k, p) in input.ego_history.iter().enumerate() {
@@ -391,7 +515,7 @@ fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Sessi
         }),
         rollout_spec: Some(RolloutSpec {
             vehicle: Some(VehicleDefinition {
-                available_cameras: cameras,
+                available_cameras: declared,
             }),
         }),
     };
@@ -408,7 +532,7 @@ fn build_session(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Sessi
     };
     Ok(Session {
         start,
-        images,
+        cameras,
         ego,
         drive,
     })
