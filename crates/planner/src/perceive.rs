@@ -155,6 +155,18 @@ pub struct Perception {
 }
 
 /// Bins across the lane, m.
+/// The eight neighbours of a grid cell, as (column, row) offsets.
+const NEIGHBOURS_8: [(isize, isize); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
 const BIN: f64 = 0.1;
 const HALF_LANE_BINS: i32 = 17;
 /// From this distance on, ground points are read from the tele camera.
@@ -1940,16 +1952,7 @@ fn veiled_lamp(view: &View<'_>, s: Sample, (u, v): (usize, usize), k: usize) -> 
     let mut housing: Option<Sample> = None;
     // `k` is at least 1 (see `lamp_patch`).
     for step in [2 * k as isize, 4 * k as isize] {
-        for (du, dv) in [
-            (-1, -1),
-            (0, -1),
-            (1, -1),
-            (-1, 0),
-            (1, 0),
-            (-1, 1),
-            (0, 1),
-            (1, 1),
-        ] {
+        for (du, dv) in NEIGHBOURS_8 {
             let (bu, bv) = (u as isize + du * step, v as isize + dv * step);
             if bu < 0 || bv < 0 || bu as usize + k > view.width() || bv as usize + k > view.height()
             {
@@ -2129,16 +2132,7 @@ fn sign_in_view(view: &View<'_>, gain: f32, lost: &[Lost]) -> Option<f64> {
             blob.u1 = blob.u1.max(u + k);
             blob.v0 = blob.v0.min(v);
             blob.v1 = blob.v1.max(v + k);
-            for (di, dj) in [
-                (-1, -1),
-                (0, -1),
-                (1, -1),
-                (-1, 0),
-                (1, 0),
-                (-1, 1),
-                (0, 1),
-                (1, 1),
-            ] {
+            for (di, dj) in NEIGHBOURS_8 {
                 let (ni, nj) = (i as isize + di, j as isize + dj);
                 if ni < 0 || nj < 0 || ni >= gw as isize || nj >= gh as isize {
                     continue;

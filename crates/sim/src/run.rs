@@ -93,6 +93,21 @@ impl SensorParams {
             as u32)
             .max(24)
     }
+
+    /// The closed loop's cameras: the override's views (cross-left, front-wide,
+    /// cross-right, see [`crate::sense::rco_cameras`]) and the agent's front-tele camera.
+    pub fn cameras(&self) -> ([CameraCalib; 3], CameraCalib) {
+        let views = crate::sense::rco_cameras(
+            self.width,
+            self.height,
+            self.wide_fov_deg,
+            self.side_width(),
+            self.side_height(),
+        );
+        let tele =
+            CameraCalib::standard(CameraId::FrontTele, self.tele_width(), self.tele_height());
+        (views, tele)
+    }
 }
 
 impl Default for SensorParams {
@@ -444,14 +459,7 @@ pub fn run_route_with(
         speed_mps: 0.0,
     };
     let s = &params.sensors;
-    let [left, wide, right] = crate::sense::rco_cameras(
-        s.width,
-        s.height,
-        s.wide_fov_deg,
-        s.side_width(),
-        s.side_height(),
-    );
-    let tele = CameraCalib::standard(CameraId::FrontTele, s.tele_width(), s.tele_height());
+    let ([left, wide, right], tele) = s.cameras();
     let agent_every = (TICK_HZ / s.agent_hz).round() as u64;
     let speed_scale = (1.0 / s.agent_hz) / 0.1;
     let mut agent = match driver {

@@ -12,26 +12,16 @@ use fogline_planner::perceive::{Knowing, Lost, perceive_knowing};
 use fogline_sim::geom::{P2, add, right_of};
 use fogline_sim::route;
 use fogline_sim::run::SensorParams;
-use fogline_sim::sense::{
-    Daylight, DeficitKind, Lens, PartsCache, Weather, look, rco_cameras, scene_at, see,
-};
+use fogline_sim::sense::{Daylight, DeficitKind, Lens, PartsCache, Weather, look, scene_at, see};
 use fogline_sim::town::{DIRS, HALF_ROAD_M, LANE_W_M, Town, TownParams};
 use fogline_sim::traffic::{Traffic, TrafficParams};
 use fogline_sim::vehicle::VehicleState;
-use fogline_types::clip::{CAMERA_X_M, CameraCalib, CameraId, CameraInput, EgoPose, PlannerInput};
+use fogline_types::clip::{CAMERA_X_M, CameraCalib, CameraInput, EgoPose, PlannerInput};
 use fogline_world::scene::Draw;
 
 /// The agent's two cameras at the closed loop's default sizes.
 fn cameras() -> (CameraCalib, CameraCalib) {
-    let s = SensorParams::default();
-    let [_, wide, _] = rco_cameras(
-        s.width,
-        s.height,
-        s.wide_fov_deg,
-        s.side_width(),
-        s.side_height(),
-    );
-    let tele = CameraCalib::standard(CameraId::FrontTele, s.tele_width(), s.tele_height());
+    let ([_, wide, _], tele) = SensorParams::default().cameras();
     (wide, tele)
 }
 
