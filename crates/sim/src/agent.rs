@@ -305,7 +305,10 @@ pub const JUNCTION_MOVING_MPS: f64 = 1.0;
 /// path ahead or in the oncoming lane — one that stopped at its line before the car and now
 /// takes its turn, one turning across, one coming through — unless a green light gives it
 /// the way and it does not turn across; it goes once none has been seen for
-/// [`JUNCTION_QUIET_S`], or after [`JUNCTION_HOLD_MAX_S`] held at that junction.
+/// [`JUNCTION_QUIET_S`], or after [`JUNCTION_HOLD_MAX_S`] held at that junction. An
+/// oncoming-lane conflict counts once seen on two planning steps running (a reading in one
+/// frame only — a car glimpsed far off, paint or shadow read as one — does not hold the
+/// car; a car coming on stays in view).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JunctionGap {
     /// Seconds since a vehicle was last seen moving across the path or in the oncoming
@@ -315,6 +318,8 @@ pub struct JunctionGap {
     pub held_s: f64,
     /// The junction's entry in distance driven, m.
     pub at_m: f64,
+    /// The previous planning step saw a conflict in the oncoming lane.
+    pub oncoming_before: bool,
 }
 
 impl Default for JunctionGap {
@@ -323,6 +328,7 @@ impl Default for JunctionGap {
             quiet_s: 0.0,
             held_s: 0.0,
             at_m: f64::NEG_INFINITY,
+            oncoming_before: false,
         }
     }
 }
@@ -362,15 +368,24 @@ impl JunctionGap {
     }
 
     /// One planning step `dt_s` long before the junction whose entry is at `entry_at_m` in
-    /// distance driven: `conflict` is what [`JunctionGap::conflicts`] saw, `given_way` a
-    /// green light for a car that does not turn across. Whether to hold the car.
-    pub fn step(&mut self, entry_at_m: f64, conflict: bool, given_way: bool, dt_s: f64) -> bool {
+    /// distance driven: `across` and `oncoming` are what [`JunctionGap::conflicts`] saw (an
+    /// oncoming conflict counts when the step before saw one too), `given_way` a green light
+    /// for a car that does not turn across. Whether to hold the car.
+    pub fn step(
+        &mut self,
+        entry_at_m: f64,
+        (across, oncoming): (bool, bool),
+        given_way: bool,
+        dt_s: f64,
+    ) -> bool {
         if (entry_at_m - self.at_m).abs() > 5.0 {
             *self = Self {
                 at_m: entry_at_m,
                 ..Self::default()
             };
         }
+        let conflict = across || (oncoming && self.oncoming_before);
+        self.oncoming_before = oncoming;
         self.quiet_s = if conflict { 0.0 } else { self.quiet_s + dt_s };
         let hold =
             !given_way && self.quiet_s < JUNCTION_QUIET_S && self.held_s < JUNCTION_HOLD_MAX_S;
@@ -384,6 +399,7 @@ impl JunctionGap {
     /// before counts no longer.
     pub fn leave(&mut self) {
         self.quiet_s = 0.0;
+        self.oncoming_before = false;
     }
 }
 
@@ -744,7 +760,7 @@ impl Baseline {
                     .is_some_and(|(l, _)| l == fogline_planner::perceive::Lamp::Green);
                 let hold = self.junction_gap.step(
                     odometer_m + j.entry_m,
-                    across || oncoming,
+                    (across, oncoming),
                     green && !j.left_turn,
                     0.1 * speed_scale,
                 );
@@ -1381,10 +1397,10 @@ mod tests {
         let dt = 0.4;
         let mut gap = JunctionGap::default();
         for _ in 0..5 {
-            assert!(gap.step(200.0, true, false, dt));
+            assert!(gap.step(200.0, (true, false), false, dt));
         }
         let mut quiet_steps = 0;
-        while gap.step(200.2, false, false, dt) {
+        while gap.step(200.2, (false, false), false, dt) {
             quiet_steps += 1;
             assert!(quiet_steps < 10);
         }
@@ -1393,17 +1409,41 @@ mod tests {
         assert!(quiet(quiet_steps + 1) >= JUNCTION_QUIET_S - 1e-9);
         // A green light gives the way (to a car that does not turn across).
         let mut gap = JunctionGap::default();
-        assert!(!gap.step(300.0, true, true, dt));
+        assert!(!gap.step(300.0, (true, false), true, dt));
         // A conflict that never ends holds the car at most JUNCTION_HOLD_MAX_S.
         let mut gap = JunctionGap::default();
         let mut held = 0.0;
-        while gap.step(400.0, true, false, dt) {
+        while gap.step(400.0, (true, false), false, dt) {
             held += dt;
             assert!(held <= JUNCTION_HOLD_MAX_S + dt);
         }
         assert!(held >= JUNCTION_HOLD_MAX_S - 1e-9);
         // The next junction starts afresh.
-        assert!(gap.step(520.0, true, false, dt));
+        assert!(gap.step(520.0, (true, false), false, dt));
+
+        // The oncoming lane: a reading on one planning step does not hold the car (after
+        // quiet steps it goes), two running do.
+        let mut gap = JunctionGap::default();
+        let quiet_start = (JUNCTION_QUIET_S / dt).ceil() as usize;
+        for _ in 0..quiet_start {
+            gap.step(600.0, (false, false), false, dt);
+        }
+        assert!(!gap.step(600.0, (false, true), false, dt), "a glimpse");
+        assert!(!gap.step(600.0, (false, false), false, dt));
+        assert!(
+            !gap.step(600.0, (false, true), false, dt),
+            "another glimpse"
+        );
+        assert!(
+            gap.step(600.0, (false, true), false, dt),
+            "seen twice running"
+        );
+        // Leaving the junction's approach forgets the reading.
+        gap.leave();
+        for _ in 0..quiet_start {
+            gap.step(600.0, (false, false), false, dt);
+        }
+        assert!(!gap.step(600.0, (false, true), false, dt));
     }
 
     #[test]
