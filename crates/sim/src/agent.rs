@@ -45,7 +45,9 @@
 //! at most 10 s at one junction.
 //!
 //! **Unstick** (like TransFuser's creeping): after 55 s standing still, the agent ignores the
-//! planner for 4 s and drives at up to 4 m/s; the count restarts once it moves.
+//! planner for 4 s and drives at up to 4 m/s; the count restarts once it moves. At a signal
+//! read green since the car stood still (a working one), it waits for the green
+//! ([`UnstickSignal`]).
 //!
 //! **A planner under test** ([`Baseline::driven_by`], `fogline sim run --planner URL`) takes
 //! the rules' place: the car follows its trajectory's speed profile and stops where the
@@ -60,7 +62,7 @@ use std::sync::Arc;
 
 use fogline_planner::ReferencePlanner;
 use fogline_planner::detect::ObjectSeen;
-use fogline_planner::perceive::{LeadSeen, Lost, ObjectKind};
+use fogline_planner::perceive::{Lamp, LeadSeen, Lost, ObjectKind};
 use fogline_types::clip::{CameraInput, Decision, EgoPose, PlannerInput};
 use fogline_types::motion::EGO_FRONT_M;
 use fogline_types::planner::{PlanRequest, Planner};
@@ -208,6 +210,11 @@ pub struct Baseline {
     /// Seconds since a vehicle was last seen crossing the ego's path ahead.
     cross_quiet_s: f64,
     junction_gap: JunctionGap,
+    /// The signal ahead reads red or amber at the latest planning step.
+    signal_stop: bool,
+    /// The signal ahead was read green since the car last stood still: it is a working
+    /// signal, and the unstick rule waits for its green (see [`UnstickSignal`]).
+    signal_cycled: bool,
     objects: Vec<ObjectSeen>,
     /// A planner under test that drives instead of the baseline's rules.
     driver: Option<Driver>,
@@ -407,6 +414,36 @@ impl JunctionGap {
 /// side's stop line is about 30 m from a car at its own).
 pub const ONCOMING_REACH_M: f64 = 45.0;
 
+/// The unstick rule and the signal ahead. A car held longer than
+/// [`AgentParams::unstick_after_s`] (a walker who stands at the kerb and never crosses, a
+/// reading that never clears) moves on by the unstick rule — but not through a working
+/// signal's red: when the signal ahead has been read green since the car stood still, it
+/// is a working signal, and the rule waits while it reads red or amber and moves on its
+/// green. A signal read red throughout (a lamp the car cannot read, a mask's red outline
+/// taken for a lamp) does not hold the rule.
+#[derive(Debug, Clone, Copy)]
+pub struct UnstickSignal;
+
+impl UnstickSignal {
+    /// At a planning step: the lamp read ahead (if any) and the car's speed, and whether
+    /// the signal had been read green since the car last stood still. Returns (the signal
+    /// reads red or amber now, it has been read green since the car stood still).
+    pub fn read(lamp: Option<Lamp>, speed_mps: f64, cycled: bool) -> (bool, bool) {
+        let stop = matches!(lamp, Some(Lamp::Red | Lamp::Amber));
+        let cycled = if speed_mps >= 0.1 {
+            false
+        } else {
+            cycled || lamp == Some(Lamp::Green)
+        };
+        (stop, cycled)
+    }
+
+    /// Whether the unstick rule waits.
+    pub fn waits(stop: bool, cycled: bool) -> bool {
+        stop && cycled
+    }
+}
+
 impl Baseline {
     /// A fresh agent.
     pub fn new(params: AgentParams) -> Self {
@@ -431,6 +468,8 @@ impl Baseline {
             hidden_stop: false,
             cross_quiet_s: 0.0,
             junction_gap: JunctionGap::default(),
+            signal_stop: false,
+            signal_cycled: false,
             objects: Vec::new(),
             driver: None,
         }
@@ -638,6 +677,12 @@ impl Baseline {
             );
         }
         self.objects = fogline_planner::detect::objects(&perc, &pin);
+        // The signal ahead, for the unstick rule: whether it reads red or amber now, and
+        // whether it has been read green since the car stood still.
+        // A lamp in a lost region is no reading.
+        let lamp = perc.light.map(|(l, _)| l).filter(|_| !self.hidden_signal);
+        (self.signal_stop, self.signal_cycled) =
+            UnstickSignal::read(lamp, speed_mps, self.signal_cycled);
         // Cross traffic: a vehicle ahead moving across the ego's path.
         let crossing = perc.lead.is_some_and(|l| {
             l.kind == ObjectKind::Vehicle && l.contact_x < 40.0 && l.lateral_speed.abs() > 1.0
@@ -717,10 +762,7 @@ impl Baseline {
             Decision::ProceedOnGreen => self.red_stop_at_m = None,
             _ => {}
         }
-        if perc
-            .light
-            .is_some_and(|(l, _)| l == fogline_planner::perceive::Lamp::Green)
-        {
+        if perc.light.is_some_and(|(l, _)| l == Lamp::Green) {
             self.red_stop_at_m = None;
         }
         if self.red_stop_at_m.is_some_and(|m| odometer_m > m + 1.0) {
@@ -755,9 +797,7 @@ impl Baseline {
                     j.left_turn,
                     speed_scale,
                 );
-                let green = perc
-                    .light
-                    .is_some_and(|(l, _)| l == fogline_planner::perceive::Lamp::Green);
+                let green = perc.light.is_some_and(|(l, _)| l == Lamp::Green);
                 let hold = self.junction_gap.step(
                     odometer_m + j.entry_m,
                     (across, oncoming),
@@ -874,7 +914,10 @@ impl Baseline {
         }
         if self.unstick_left_s > 0.0 {
             self.unstick_left_s -= dt;
-        } else if self.stopped_s >= p.unstick_after_s && self.driver.is_none() {
+        } else if self.stopped_s >= p.unstick_after_s
+            && self.driver.is_none()
+            && !UnstickSignal::waits(self.signal_stop, self.signal_cycled)
+        {
             self.unstick_left_s = p.unstick_for_s;
             self.unstick_count += 1;
             log::debug!(
@@ -1444,6 +1487,37 @@ mod tests {
             gap.step(600.0, (false, false), false, dt);
         }
         assert!(!gap.step(600.0, (false, true), false, dt));
+    }
+
+    #[test]
+    fn the_unstick_rule_waits_for_a_working_signals_green() {
+        // Standing at a light read red throughout (a mask's outline, a lamp misread): the
+        // rule does not wait.
+        let mut cycled = false;
+        for _ in 0..200 {
+            let (stop, c) = UnstickSignal::read(Some(Lamp::Red), 0.0, cycled);
+            cycled = c;
+            assert!(stop && !UnstickSignal::waits(stop, cycled));
+        }
+        // Read green while standing (held by a walker at the kerb), then red again: a
+        // working signal; the rule waits through red and amber and goes on green.
+        let (_, c) = UnstickSignal::read(Some(Lamp::Green), 0.0, cycled);
+        cycled = c;
+        for lamp in [Lamp::Amber, Lamp::Red] {
+            let (stop, c) = UnstickSignal::read(Some(lamp), 0.0, cycled);
+            cycled = c;
+            assert!(UnstickSignal::waits(stop, cycled), "{lamp:?}");
+        }
+        let (stop, c) = UnstickSignal::read(Some(Lamp::Green), 0.0, cycled);
+        assert!(!UnstickSignal::waits(stop, c));
+        // No signal read now: nothing to wait for.
+        let (stop, c) = UnstickSignal::read(None, 0.0, c);
+        assert!(!UnstickSignal::waits(stop, c));
+        // Moving forgets the cycle: the next stop starts afresh.
+        let (_, c) = UnstickSignal::read(Some(Lamp::Red), 3.0, true);
+        assert!(!c);
+        let (stop, c) = UnstickSignal::read(Some(Lamp::Red), 0.0, c);
+        assert!(!UnstickSignal::waits(stop, c));
     }
 
     #[test]
