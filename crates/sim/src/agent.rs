@@ -210,6 +210,8 @@ pub struct Baseline {
     /// Seconds since a vehicle was last seen crossing the ego's path ahead.
     cross_quiet_s: f64,
     junction_gap: JunctionGap,
+    /// Where the latest crossing seen lies, in distance driven, m.
+    zebra_at_m: Option<f64>,
     /// The signal ahead reads red or amber at the latest planning step.
     signal_stop: bool,
     /// The signal ahead was read green since the car last stood still: it is a working
@@ -256,6 +258,37 @@ pub const CROSSING_GAP_M: f64 = 5.5;
 /// A walker whose contact is more than this beyond the near edge of a crossing is not on
 /// it, m (a crossing is about 4 m deep).
 pub const WALKER_ON_CROSSING_M: f64 = 6.0;
+
+/// A crossing seen closer than this has the perception read the oncoming lane too, for a
+/// walker on the crossing's far half ([`walker_on_far_crossing`]), m.
+pub const FAR_CROSSING_REACH_M: f64 = 30.0;
+
+/// Whether the road user read in the lane to the left (`left`; speeds perceived at
+/// `speed_scale` times the true ones) is a walker on the crossing ahead (its near edge
+/// `zebra` m ahead) who has the way: on it (contact within its 4 m depth, 1 m of slack), seen
+/// in two frames or more, and either walking towards the ego's lane (across at 0.5 m/s or
+/// more, slower than 2 m/s along the lane) or standing on it (along the lane within 1 m/s
+/// beyond two standard errors). A
+/// vehicle coming through moves along the lane; one waiting at its own side stands beyond
+/// the crossing. The ego lane's reading already holds the car for a walker on its own half.
+pub fn walker_on_far_crossing(
+    left: Option<&LeadSeen>,
+    zebra: Option<f64>,
+    speed_scale: f64,
+) -> bool {
+    let (Some(l), Some(z)) = (left, zebra) else {
+        return false;
+    };
+    let on = l.contact_x > z - 1.0 && l.contact_x < z + 5.0;
+    let seen = l.track.iter().flatten().count() >= 2;
+    // A walker, not a vehicle read with a sideways scatter: slower than 2 m/s along the
+    // lane (beyond two standard errors).
+    let slow = l.speed.abs() - 2.0 * l.speed_se < 2.0 * speed_scale;
+    let towards = slow && l.lateral_speed <= -0.5 * speed_scale;
+    let standing =
+        l.speed.abs() - 2.0 * l.speed_se < speed_scale && l.lateral_speed.abs() < 0.5 * speed_scale;
+    on && seen && (towards || standing)
+}
 
 /// What the planner is given each step.
 pub struct AgentInput<'a> {
@@ -468,6 +501,7 @@ impl Baseline {
             hidden_stop: false,
             cross_quiet_s: 0.0,
             junction_gap: JunctionGap::default(),
+            zebra_at_m: None,
             signal_stop: false,
             signal_cycled: false,
             objects: Vec::new(),
@@ -602,7 +636,10 @@ impl Baseline {
         let knowing = fogline_planner::perceive::Knowing {
             lost: &self.lost,
             nav_kappa: Some(input.nav_kappa),
-            left_lane: entering.is_some(),
+            left_lane: entering.is_some()
+                || self.zebra_at_m.is_some_and(|z| {
+                    z - odometer_m > -2.0 && z - odometer_m < FAR_CROSSING_REACH_M
+                }),
         };
         let out = self.planner.plan_knowing(&pin, &knowing);
         if let Some(driver) = &self.driver {
@@ -728,6 +765,28 @@ impl Baseline {
             planned_stop = perc
                 .lead
                 .map(|l| l.contact_x - fogline_planner::plan::WALKER_GAP_M - EGO_FRONT_M);
+        }
+        // A walker on the crossing's far half, walking towards the car's lane or standing
+        // on it, has the way too: the car stops before the crossing (where it stops for
+        // one on its own half).
+        if let Some(z) = perc.zebra {
+            self.zebra_at_m = Some(odometer_m + z);
+        }
+        let far_walker = walker_on_far_crossing(perc.left_object.as_ref(), perc.zebra, speed_scale);
+        if far_walker
+            && !matches!(
+                decision,
+                Decision::StopForRedLight | Decision::StopForSign | Decision::YieldToCrossing
+            )
+        {
+            decision = Decision::YieldToCrossing;
+            planned_stop = perc.zebra.map(|z| z - CROSSING_GAP_M - EGO_FRONT_M);
+            log::debug!(
+                "walker on the far half of the crossing {:.1} m ahead: {:?}",
+                perc.zebra.unwrap_or(f64::NAN),
+                perc.left_object
+                    .map(|l| (l.contact_x, l.speed, l.lateral_speed))
+            );
         }
         // The planned stop point, or further back: 5.5 m before a crossing the planner sees
         // short of it (where the stop line is; this keeps the crossing's stripes out of the
@@ -1487,6 +1546,52 @@ mod tests {
             gap.step(600.0, (false, false), false, dt);
         }
         assert!(!gap.step(600.0, (false, true), false, dt));
+    }
+
+    #[test]
+    fn a_walker_on_the_far_half_of_a_crossing_has_the_way() {
+        let scale = 4.0;
+        let zebra = Some(10.0);
+        let seen = |mut l: LeadSeen| {
+            l.track[0] = Some(l.contact_x);
+            l.track[1] = Some(l.contact_x);
+            l.kind = ObjectKind::Person;
+            l
+        };
+        // Walking towards the car's lane at 1.2 m/s on the crossing, or standing on it
+        // (`vehicle` takes the gap: the contact is 4 m farther).
+        let towards = LeadSeen {
+            lateral_speed: -1.2 * scale,
+            ..seen(vehicle(7.0, 0.0))
+        };
+        let standing = LeadSeen {
+            speed_se: 0.3 * scale,
+            ..seen(vehicle(8.5, 0.5 * scale))
+        };
+        assert!(walker_on_far_crossing(Some(&towards), zebra, scale));
+        assert!(walker_on_far_crossing(Some(&standing), zebra, scale));
+        // Walking away from the lane, a car coming through, beyond the crossing, before it,
+        // seen in one frame, no crossing, nobody: the car goes on.
+        let away = LeadSeen {
+            lateral_speed: 1.2 * scale,
+            ..towards
+        };
+        let through = seen(vehicle(7.0, -8.0 * scale));
+        let through_scattered = LeadSeen {
+            lateral_speed: -2.0 * scale,
+            ..through
+        };
+        let beyond = seen(vehicle(12.0, 0.0));
+        let before = seen(vehicle(4.5, 0.0));
+        let once = LeadSeen {
+            track: [Some(11.0), None, None, None],
+            ..towards
+        };
+        for l in [away, through, through_scattered, beyond, before, once] {
+            assert!(!walker_on_far_crossing(Some(&l), zebra, scale), "{l:?}");
+        }
+        assert!(!walker_on_far_crossing(Some(&towards), None, scale));
+        assert!(!walker_on_far_crossing(None, zebra, scale));
     }
 
     #[test]
