@@ -696,6 +696,7 @@ impl Baseline {
                     l.kind,
                     (l.width_m * 10.0).round() / 10.0,
                     (l.speed * 10.0).round() / 10.0,
+                    (l.speed_se * 10.0).round() / 10.0,
                     (l.right_edge * 10.0).round() / 10.0,
                     (l.left_edge * 10.0).round() / 10.0,
                     (l.confidence * 100.0).round() / 100.0
@@ -891,12 +892,26 @@ impl Baseline {
         // like it), and a car that no longer sees it must not drive into it.
         self.lead_memory
             .update(perc.lead.as_ref(), odometer_m, self.plans, t_s, speed_scale);
+        let clear_m = perc.lead.as_ref().map_or_else(
+            || perc.road_end.map_or(f64::INFINITY, |x| x - EGO_FRONT_M),
+            |l| l.gap,
+        );
+        self.lead_memory.seen_clear(odometer_m, clear_m);
         let remembered = perc
             .lead
             .is_none()
             .then(|| self.lead_memory.recall(odometer_m))
             .flatten();
-        let ahead = perc.lead.as_ref().or(remembered.as_ref());
+        // A lead whose face could not be followed between frames carries the car's own
+        // speed (the perception's placeholder), and behind it the car would close in as if
+        // it drove away at that speed (traced: seed 0 route 25, a car standing at a red read
+        // untracked from 21 m in, driven into once it dropped out of view). The car takes
+        // it at the speed of its positions over the last planning steps (a vehicle's range
+        // rate), else as standing: an unknown speed is not the car's own.
+        let judged = perc
+            .lead
+            .map(|l| untracked_speed(l, self.lead_memory.range_rate(), speed_scale));
+        let ahead = judged.as_ref().or(remembered.as_ref());
         let target = target.min(follow_cap(ahead, speed_mps, cruise, speed_scale));
         // What the unstick rule keeps clear of: the vehicle ahead seen beyond
         // `UNSTICK_KEEP_M`, else the one remembered (which may be closer by now).
@@ -1129,8 +1144,9 @@ pub const LEAD_MEMORY_S: f64 = 4.0;
 /// it left (a car that drives straight off is seen again as it pulls away; one that turns
 /// away close ahead is not) ...
 pub const LEAD_BLIND_M: f64 = 5.0;
-/// ... when it is kept for this long, s (most of a red phase).
-pub const LEAD_BLIND_S: f64 = 30.0;
+/// ... when it is kept until the lane is seen clear this far past its rear, m (a car's
+/// length and a margin).
+pub const LEAD_CLEAR_PAST_M: f64 = 5.5;
 /// A standing vehicle is remembered once seen twice, at most this many planning steps
 /// apart ...
 pub const LEAD_CONFIRM_PLANS: u64 = 3;
@@ -1170,9 +1186,10 @@ impl LeadMemory {
     /// consistent reading refreshes it; one read closer than that counts as none (such a
     /// reading alone is taken for a misreading: a kerb across a turn read so could hold
     /// the car for good); a moving vehicle replaces it. Without a lead it is forgotten once
-    /// the car has reached it or after [`LEAD_MEMORY_S`] ([`LEAD_BLIND_S`] within
-    /// [`LEAD_BLIND_M`]) — in time, not planning steps: a car standing idle looks less
-    /// often.
+    /// the car has reached it or, beyond [`LEAD_BLIND_M`], after [`LEAD_MEMORY_S`] — in
+    /// time, not planning steps: a car standing idle looks less often. Within
+    /// [`LEAD_BLIND_M`] only the lane seen clear past it forgets it
+    /// ([`LeadMemory::seen_clear`]).
     pub fn update(
         &mut self,
         lead: Option<&LeadSeen>,
@@ -1226,18 +1243,32 @@ impl LeadMemory {
                 self.candidate = None;
             }
             // None, or a reading too close to trust alone: neither moves nor refreshes it.
+            // Out of view close ahead it stays until the lane is seen clear past it
+            // ([`LeadMemory::seen_clear`]); farther on, not seeing it is evidence enough.
             _ => {
                 if self.seen.is_some_and(|(at, seen_s)| {
-                    let keep = if at - odometer_m < LEAD_BLIND_M {
-                        LEAD_BLIND_S
-                    } else {
-                        LEAD_MEMORY_S
-                    };
-                    at < odometer_m || t_s - seen_s > keep
+                    at < odometer_m
+                        || (at - odometer_m >= LEAD_BLIND_M && t_s - seen_s > LEAD_MEMORY_S)
                 }) {
                     self.seen = None;
                 }
             }
+        }
+    }
+
+    /// Forgets the remembered vehicle once the frames show the ego lane free of anything
+    /// for `clear_m` m ahead of the bumper (the perceived lead's gap, else the road's end,
+    /// else the perception's reach) and that reaches a car's length past where it stood:
+    /// the ground it stood on is seen, so it has gone. This is the only way a vehicle
+    /// remembered within [`LEAD_BLIND_M`] is forgotten (forgotten after 30 s instead, a car
+    /// that stood ahead through a long red, its contact out of view and its body read as
+    /// the road's end, was driven into: seed 0 route 1 at 387 s).
+    pub fn seen_clear(&mut self, odometer_m: f64, clear_m: f64) {
+        if self
+            .seen
+            .is_some_and(|(at, _)| clear_m > at - odometer_m + LEAD_CLEAR_PAST_M)
+        {
+            self.seen = None;
         }
     }
 
@@ -1288,6 +1319,22 @@ impl LeadMemory {
             confidence: 0.0,
             track: [None; 4],
         })
+    }
+}
+
+/// `lead` as the car judges its speed: as perceived when its face was followed between
+/// frames; otherwise (the perception then reports the car's own speed as a placeholder) a
+/// vehicle at `range_rate` (m/s, the speed of its positions over the last planning steps,
+/// [`LeadMemory::range_rate`]) when there is one, and anything else as standing.
+/// `speed_scale` converts m/s to the planner's speeds.
+pub fn untracked_speed(lead: LeadSeen, range_rate: Option<f64>, speed_scale: f64) -> LeadSeen {
+    if lead.track[1..].iter().any(Option::is_some) {
+        return lead;
+    }
+    let rate = range_rate.filter(|_| lead.kind == ObjectKind::Vehicle);
+    LeadSeen {
+        speed: rate.map_or(0.0, |v| v.max(0.0)) * speed_scale,
+        ..lead
     }
 }
 
@@ -1400,6 +1447,33 @@ mod tests {
         assert!((lapsed - plain).abs() < 1e-9);
         // Standing behind a standing car: stay.
         assert_eq!(follow_cap(Some(&lead(4.0, 0.0)), 0.0, 8.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn a_lead_of_unknown_speed_is_taken_at_its_range_rate_or_as_standing() {
+        // Untracked (no earlier frame matched), read at the car's own 8 m/s, 20 m ahead.
+        let mut l = vehicle(20.0, 8.0 * 4.0);
+        l.track = [Some(24.0), None, None, None];
+        // Behind a lead taken at the car's speed the car would hardly slow; taken as
+        // standing it brakes at once.
+        let at_own = follow_cap(Some(&l), 8.0, 8.0, 4.0);
+        assert!(at_own > 7.5, "{at_own}");
+        let judged = untracked_speed(l, None, 4.0);
+        assert_eq!(judged.speed, 0.0);
+        let standing = follow_cap(Some(&judged), 8.0, 8.0, 4.0);
+        assert!(standing < at_own - 1.0, "{standing}");
+        // With a range rate from its tracked positions: that speed (never negative).
+        assert_eq!(untracked_speed(l, Some(5.0), 4.0).speed, 20.0);
+        assert_eq!(untracked_speed(l, Some(-1.0), 4.0).speed, 0.0);
+        // A walker's range rate is a vehicle's, stale: a walker untracked stands.
+        let walker = LeadSeen {
+            kind: ObjectKind::Person,
+            ..l
+        };
+        assert_eq!(untracked_speed(walker, Some(5.0), 4.0).speed, 0.0);
+        // Tracked: as perceived.
+        l.track[2] = Some(24.8);
+        assert_eq!(untracked_speed(l, None, 4.0).speed, 32.0);
     }
 
     #[test]
@@ -1646,13 +1720,15 @@ mod tests {
         // `LEAD_MEMORY_S`...
         m.update(None, 103.0, 20, at(2) + LEAD_MEMORY_S + 1.0, 1.0);
         assert_eq!(m.gap(103.0), Some(3.0));
-        // ... but after `LEAD_BLIND_S` (a reading 1 m away, too close to trust alone,
-        // neither moves nor refreshes it), however few planning steps that took (a car
-        // standing idle looks less often), or once past where it was.
+        // ... nor after minutes (a reading 1 m away, too close to trust alone, neither
+        // moves nor refreshes it), nor when the lane reads blocked just beyond it (its body
+        // taken for the road's end) ...
         m.update(Some(&vehicle(1.0, 0.0)), 103.0, 21, at(2) + 10.0, 1.0);
-        m.update(None, 103.0, 22, at(2) + LEAD_BLIND_S - 0.1, 1.0);
+        m.update(None, 103.0, 22, at(2) + 300.0, 1.0);
+        m.seen_clear(103.0, 3.0 + LEAD_CLEAR_PAST_M - 0.1);
         assert_eq!(m.gap(103.0), Some(3.0));
-        m.update(None, 103.0, 23, at(2) + LEAD_BLIND_S + 0.1, 1.0);
+        // ... but once the lane is seen clear past it, or once past where it was.
+        m.seen_clear(103.0, 3.0 + LEAD_CLEAR_PAST_M + 0.1);
         assert_eq!(m.gap(103.0), None);
         m.update(Some(&vehicle(6.0, 0.0)), 100.0, 1, at(1), 1.0);
         m.update(Some(&vehicle(6.0, 0.0)), 100.0, 2, at(2), 1.0);

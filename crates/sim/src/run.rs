@@ -760,7 +760,7 @@ pub fn run_route_with(
                         &ego,
                         n.pos,
                         n.speed_mps,
-                        &agent,
+                        (&agent, rco_active),
                     );
                 }
                 let mut e = Event::new(EventKind::CollisionVehicle, t, n.pos[0], n.pos[1]);
@@ -781,7 +781,7 @@ pub fn run_route_with(
                 };
                 if log::log_enabled!(log::Level::Debug) {
                     let what = format!("{kind:?} walker {} event {}", w.id, w.event);
-                    debug_collision(t, &what, &ego, w.pos, w.speed_mps, &agent);
+                    debug_collision(t, &what, &ego, w.pos, w.speed_mps, (&agent, rco_active));
                 }
                 let mut e = Event::new(kind, t, w.pos[0], w.pos[1]);
                 e.actor = Some(w.id);
@@ -1214,14 +1214,23 @@ fn ego_frame(ego: &VehicleState, p: P2) -> (f64, f64) {
 
 /// A debug line for a collision: who, the speeds, where the other was, what the agent meant
 /// to do (for tracing why it happened).
-fn debug_collision(t: f64, what: &str, ego: &VehicleState, at: P2, speed: f64, agent: &Baseline) {
+/// `driver`: the agent, and whether the override was in control.
+fn debug_collision(
+    t: f64,
+    what: &str,
+    ego: &VehicleState,
+    at: P2,
+    speed: f64,
+    driver: (&Baseline, bool),
+) {
     let (ahead, left) = ego_frame(ego, at);
-    let i = agent.intent();
+    let i = driver.0.intent();
     log::debug!(
-        "collision t {t:.1} {what} v {:.2} other v {speed:.2} at ahead {ahead:+.2} left {left:+.2} target {:.2} {:?} lead gap {:?}",
+        "collision t {t:.1} {what} v {:.2} other v {speed:.2} at ahead {ahead:+.2} left {left:+.2} target {:.2} {:?} lead gap {:?} rco {}",
         ego.speed_mps,
         i.target_mps,
         i.decision,
-        i.lead_gap_m
+        i.lead_gap_m,
+        driver.1
     );
 }
