@@ -201,50 +201,45 @@ fn remote_overhead(
     let raw: usize = all.iter().map(|f| f.0.len()).sum();
     let mut codec = Vec::new();
     for (format, fname, _) in formats {
-        let mut enc = Vec::new();
-        let mut dec = Vec::new();
-        let mut bytes = 0;
-        for _ in 0..5 {
-            let t = Instant::now();
-            let encoded = all
-                .iter()
-                .map(|&(f, w, h)| {
-                    fogline_io::encode_with(f, w, h, format, fogline_io::PngSpeed::Wire)
-                        .map_err(anyhow::Error::msg)
-                })
-                .collect::<Result<Vec<_>>>()?;
-            enc.push(t.elapsed().as_secs_f64() * 1e3);
-            let t = Instant::now();
-            for e in &encoded {
-                fogline_remote::decode_frame(e, u64::MAX).map_err(anyhow::Error::msg)?;
+        use rayon::prelude::*;
+        let encode = |&(f, w, h): &(&[u8], u32, u32)| {
+            fogline_io::encode_with(f, w, h, format, fogline_io::PngSpeed::Wire)
+                .map_err(anyhow::Error::msg)
+        };
+        let decode = |e: &Vec<u8>| {
+            fogline_remote::decode_frame(e, u64::MAX)
+                .map(|_| ())
+                .map_err(anyhow::Error::msg)
+        };
+        // Median encode and decode times of five rounds (ms) and the bytes on the wire: on
+        // one thread, or on every core (one frame per task: what a call costs at the least
+        // here, the client's encode and the server's decode sharing the machine).
+        let timed = |all_cores: bool| -> Result<(f64, f64, usize)> {
+            let (mut enc, mut dec, mut bytes) = (Vec::new(), Vec::new(), 0);
+            for _ in 0..5 {
+                let t = Instant::now();
+                let encoded: Vec<Vec<u8>> = if all_cores {
+                    all.par_iter().map(encode).collect::<Result<_>>()?
+                } else {
+                    all.iter().map(encode).collect::<Result<_>>()?
+                };
+                enc.push(t.elapsed().as_secs_f64() * 1e3);
+                let t = Instant::now();
+                if all_cores {
+                    encoded
+                        .par_iter()
+                        .map(decode)
+                        .collect::<Result<Vec<()>>>()?;
+                } else {
+                    encoded.iter().map(decode).collect::<Result<Vec<()>>>()?;
+                }
+                dec.push(t.elapsed().as_secs_f64() * 1e3);
+                bytes = encoded.iter().map(Vec::len).sum();
             }
-            dec.push(t.elapsed().as_secs_f64() * 1e3);
-            bytes = encoded.iter().map(Vec::len).sum();
-        }
-        let (enc, dec) = (median(enc), median(dec));
-        // The same on every core (one frame per task): what a call costs at the least here,
-        // the client's encode and the server's decode sharing the machine.
-        let (mut par_enc, mut par_dec) = (Vec::new(), Vec::new());
-        for _ in 0..5 {
-            use rayon::prelude::*;
-            let t = Instant::now();
-            let encoded = all
-                .par_iter()
-                .map(|&(f, w, h)| {
-                    fogline_io::encode_with(f, w, h, format, fogline_io::PngSpeed::Wire)
-                        .map_err(anyhow::Error::msg)
-                })
-                .collect::<Result<Vec<_>>>()?;
-            par_enc.push(t.elapsed().as_secs_f64() * 1e3);
-            let t = Instant::now();
-            encoded
-                .par_iter()
-                .map(|e| fogline_remote::decode_frame(e, u64::MAX).map(|_| ()))
-                .collect::<Result<Vec<()>, String>>()
-                .map_err(anyhow::Error::msg)?;
-            par_dec.push(t.elapsed().as_secs_f64() * 1e3);
-        }
-        let (par_enc, par_dec) = (median(par_enc), median(par_dec));
+            Ok((median(enc), median(dec), bytes))
+        };
+        let (enc, dec, bytes) = timed(false)?;
+        let (par_enc, par_dec, _) = timed(true)?;
         writeln!(
             out,
             "  {fname:<7} {} frames on one thread: encode {enc:.2} ms, decode {dec:.2} ms; {:.0} kB on the wire ({:.0} % of the pixels' bytes)",
