@@ -71,6 +71,14 @@ pub struct LeadSeen {
     pub track: [Option<f64>; 4],
 }
 
+impl LeadSeen {
+    /// In how many of the clip's frames it was found (1 when its face could not be
+    /// followed: its speed is then the ego's own, a placeholder).
+    pub fn frames_seen(&self) -> usize {
+        self.track.iter().flatten().count()
+    }
+}
+
 /// The lane the ego drives in.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LaneSeen {

@@ -280,7 +280,7 @@ pub fn walker_on_far_crossing(
         return false;
     };
     let on = l.contact_x > z - 1.0 && l.contact_x < z + 5.0;
-    let seen = l.track.iter().flatten().count() >= 2;
+    let seen = l.frames_seen() >= 2;
     // A walker, not a vehicle read with a sideways scatter: slower than 2 m/s along the
     // lane (beyond two standard errors).
     let slow = l.speed.abs() - 2.0 * l.speed_se < 2.0 * speed_scale;
@@ -388,7 +388,7 @@ impl JunctionGap {
         left_turn: bool,
         speed_scale: f64,
     ) -> (bool, bool) {
-        let tracked = |l: &LeadSeen| l.track.iter().flatten().count() >= 3;
+        let tracked = |l: &LeadSeen| l.frames_seen() >= 3;
         let moving = JUNCTION_MOVING_MPS * speed_scale;
         let across = lead.is_some_and(|l| {
             l.kind == ObjectKind::Vehicle
@@ -877,7 +877,7 @@ impl Baseline {
                             (l.speed * 10.0).round() / 10.0,
                             (l.speed_se * 10.0).round() / 10.0,
                             (l.lateral_speed * 10.0).round() / 10.0,
-                            l.track.iter().flatten().count()
+                            l.frames_seen()
                         ))
                     );
                 }
@@ -1328,7 +1328,7 @@ impl LeadMemory {
 /// [`LeadMemory::range_rate`]) when there is one, and anything else as standing.
 /// `speed_scale` converts m/s to the planner's speeds.
 pub fn untracked_speed(lead: LeadSeen, range_rate: Option<f64>, speed_scale: f64) -> LeadSeen {
-    if lead.track[1..].iter().any(Option::is_some) {
+    if lead.frames_seen() >= 2 {
         return lead;
     }
     let rate = range_rate.filter(|_| lead.kind == ObjectKind::Vehicle);
