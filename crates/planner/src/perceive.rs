@@ -160,6 +160,14 @@ pub struct Perception {
     /// for one coming towards the car); only looked for when asked ([`perceive_objects`],
     /// [`Knowing::left_lane`]), `None` otherwise.
     pub left_object: Option<LeadSeen>,
+    /// The nearest road user on the right kerb within [`KERB_REACH_M`]: on the shoulder or
+    /// the sidewalk, 0.2–3 m right of the lane's right marking (someone who may step off
+    /// it into the lane); its lateral extents relative to the ego lane's centre (its
+    /// `left_edge` is the one nearest the lane; the other takes in the ground its body
+    /// hides beyond it). Not tracked over the clip's frames (its speeds are placeholders,
+    /// as an untracked lead's: [`LeadSeen::frames_seen`] is 1); a driver follows it over
+    /// its steps. Only looked for when asked ([`Knowing::kerb`]), `None` otherwise.
+    pub kerb_object: Option<LeadSeen>,
 }
 
 /// Bins across the lane, m.
@@ -182,6 +190,12 @@ const TELE_FROM_M: f64 = 13.0;
 /// Speed across the lane from which a road user on a crossing is crossing it, m/s (a walker
 /// crosses at 1–1.5 m/s).
 const CROSSING_MPS: f64 = 0.8;
+/// How far ahead the kerb is scanned for road users, m ([`Perception::kerb_object`]).
+pub const KERB_REACH_M: f64 = 35.0;
+/// The kerb scan's strip: from this far outside the lane's right marking, m ...
+const KERB_FROM_M: f64 = 0.2;
+/// ... out to this far, m (a shoulder, a kerb and the near part of a sidewalk).
+const KERB_TO_M: f64 = 3.0;
 
 struct Eyes<'a> {
     wide: Option<View<'a>>,
@@ -428,6 +442,9 @@ pub struct Knowing<'a> {
     /// ([`Perception::left_object`], as [`perceive_objects`] does): a car about to enter a
     /// junction asks, to see who is coming or starting across it.
     pub left_lane: bool,
+    /// Look for a road user on the right kerb as well ([`Perception::kerb_object`]): a
+    /// driver watches the sidewalk ahead for someone about to step into the road.
+    pub kerb: bool,
 }
 
 /// [`perceive`] knowing what [`Knowing`] holds. With nothing known it equals [`perceive`].
@@ -553,8 +570,12 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool, knowing: &Knowing<
         inner: 1.0,
         half,
     };
-    let ego_bins = first_blocked(&eyes, &xs, &centre, ego, &road, &painted);
-    let left_bins = first_blocked(&eyes, &xs, &centre, left, &road, &painted);
+    let asphalt = Ground {
+        road: &road,
+        paving: None,
+    };
+    let ego_bins = first_blocked(&eyes, &xs, &centre, ego, asphalt, &painted);
+    let left_bins = first_blocked(&eyes, &xs, &centre, left, asphalt, &painted);
     // Noise hides the far edge of a T-junction from the fine bins' small patches; a step in
     // the colour of the whole road across both lanes, pooled over metres of ground and the
     // clip's frames, still shows it. Taken only with asphalt opening to the right before it
@@ -630,6 +651,10 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool, knowing: &Knowing<
                 .map(|l| lead_motion(input, &eyes, &left_centre, speed, l))
         })
         .flatten();
+    let kerb_object = knowing
+        .kerb
+        .then(|| kerb_object(&eyes, &xs, &centre, half, &road, gain, speed, &painted))
+        .flatten();
     Perception {
         speed,
         kappa_history,
@@ -649,7 +674,83 @@ fn perceive_with(input: &PlannerInput<'_>, left_object: bool, knowing: &Knowing<
         stop_sign,
         quality,
         left_object,
+        kerb_object,
     }
+}
+
+/// The nearest road user on the right kerb ([`Perception::kerb_object`]): the lane scan
+/// ([`first_blocked`], [`lead_of`]) run over a strip right of the lane's marking, where
+/// the ground is asphalt (a shoulder), the sidewalk's paving (measured as the road is,
+/// [`ground_model`]) or a blend of both (the kerb seen from afar).
+#[allow(clippy::too_many_arguments)]
+fn kerb_object(
+    eyes: &Eyes<'_>,
+    xs: &[f64],
+    centre: &dyn Fn(f64) -> f64,
+    half: f64,
+    road: &RoadModel,
+    gain: f32,
+    speed: f64,
+    painted: &dyn Fn(f64, f64) -> bool,
+) -> Option<LeadSeen> {
+    // The strip's middle, right of the lane centre.
+    let mid = half + 0.5 * (KERB_FROM_M + KERB_TO_M);
+    let strip = 0.5 * (KERB_TO_M - KERB_FROM_M);
+    let kerb_centre = |x: f64| centre(x) - mid;
+    // The paving: the strip's outer part (a shoulder's asphalt lies at its inner edge).
+    let paving = ground_model(
+        eyes,
+        &kerb_centre,
+        gain,
+        (-strip, strip - 0.6),
+        (-strip, strip - 0.6),
+    );
+    let xs: Vec<f64> = xs.iter().copied().filter(|&x| x <= KERB_REACH_M).collect();
+    let span = Span {
+        shift: 0.0,
+        inner: strip,
+        half: strip + 0.1,
+    };
+    let ground = Ground {
+        road,
+        paving: Some(&paving),
+    };
+    let bins = first_blocked(eyes, &xs, &kerb_centre, span, ground, painted);
+    let found = lead_of(eyes, &bins, &kerb_centre, &paving, speed)?;
+    // The bins need four blocked samples in a row, which a narrow body off the camera's
+    // axis gives on its far side (the ground it hides beyond it) more than on its near
+    // side: the edge nearest the lane is read across the ground it stands on instead,
+    // one sample at a time, inwards from the nearest bin blocked within 2 m of its contact.
+    let x = found.contact_x;
+    let mut edge = bins
+        .iter()
+        .enumerate()
+        .filter(|&(_, &b)| b >= x && b < x + 2.0)
+        .map(|(i, _)| (i as i32 - HALF_LANE_BINS) as f64 * BIN)
+        .fold(found.left_edge.min(-strip), f64::max);
+    // (Across the rows from 1.2 m short of the contact: where one camera hands over to the
+    // other, the contact may read up to a metre beyond the body.)
+    let covered = |on: f64, y: f64| {
+        eyes.ground(on, kerb_centre(on) + y, 0.05, 0.2)
+            .is_some_and(|s| {
+                let (r, p) = (road.refs(on), paving.refs(on));
+                not_road(s, &r, false) && not_road(s, &p, false) && !is_mixed(s, &r, &p)
+            })
+    };
+    let start = edge;
+    for k in 0..=7 {
+        let on = x - 1.2 + 0.2 * f64::from(k);
+        let mut e = start;
+        while e + 0.05 <= strip + 0.2 && covered(on, e + 0.05) {
+            e += 0.05;
+        }
+        edge = edge.max(e);
+    }
+    Some(LeadSeen {
+        right_edge: found.right_edge - mid,
+        left_edge: edge - mid,
+        ..found
+    })
 }
 
 /// Per-channel median.
@@ -669,6 +770,19 @@ fn median_rgb(v: &mut [Rgb]) -> Option<Rgb> {
 /// Measures the [`RoadModel`]: the near reference from grey ground 5–9 m ahead, then one
 /// band per metre out to 70 m.
 fn road_model(eyes: &Eyes<'_>, centre: &dyn Fn(f64) -> f64, gain: f32) -> RoadModel {
+    ground_model(eyes, centre, gain, (-1.2, 1.2), (-1.4, 5.0))
+}
+
+/// A [`RoadModel`] of the ground between `lats` (m from `centre(x)`, left positive): the
+/// near reference from `near` 5–9 m ahead, then one band per metre. The road's is read
+/// over the ego lane and the one to its left; a sidewalk's over its paving.
+fn ground_model(
+    eyes: &Eyes<'_>,
+    centre: &dyn Fn(f64) -> f64,
+    gain: f32,
+    near: (f64, f64),
+    lats: (f64, f64),
+) -> RoadModel {
     let band = |x0: f64, x1: f64, lo: f64, hi: f64| -> Option<Rgb> {
         let mut v = Vec::with_capacity(48);
         let mut x = x0;
@@ -684,15 +798,15 @@ fn road_model(eyes: &Eyes<'_>, centre: &dyn Fn(f64) -> f64, gain: f32) -> RoadMo
         }
         median_rgb(&mut v)
     };
-    // The near reference: the ego lane's interior, 5–9 m ahead.
-    let near = band(5.0, 9.0, -1.2, 1.2).unwrap_or([90.0, 90.0, 95.0]);
+    // The near reference, 5–9 m ahead.
+    let near = band(5.0, 9.0, near.0, near.1).unwrap_or([90.0, 90.0, 95.0]);
     let x0 = 5.0;
     let mut cols = vec![near];
     let mut last = near;
     let mut last_x = x0;
     let mut x = x0 + RoadModel::STEP;
     while x <= 70.5 {
-        if let Some(c) = band(x, x + RoadModel::STEP, -1.4, 5.0) {
+        if let Some(c) = band(x, x + RoadModel::STEP, lats.0, lats.1) {
             let dx = (x - last_x) as f32;
             let d = [c[0] - last[0], c[1] - last[1], c[2] - last[2]];
             // Smooth drift only: at most 3.5 levels per metre in luminance (Koschmieder
@@ -1051,21 +1165,64 @@ fn sample_distances() -> Vec<f64> {
     xs
 }
 
-/// Is the ground at `(x, y)` blocked (not road)? `painted` marks distances with transverse
-/// paint, where grey brighter than asphalt is paint seen edge-on.
+/// Is the ground at `(x, y)` blocked (not the [`Ground`] expected there, nor a blend of its
+/// asphalt and its paving)? `painted` marks distances with transverse paint,
+/// where grey brighter than asphalt is paint seen edge-on.
 #[inline]
 fn blocked_at(
     eyes: &Eyes<'_>,
-    road: &RoadModel,
+    ground: Ground<'_>,
     x: f64,
     y: f64,
     lat: f64,
     reach: f64,
     painted: bool,
 ) -> bool {
-    let refs = road.refs(x);
-    eyes.ground_up(x, y, lat, reach)
-        .is_some_and(|s| not_road(s, &refs, painted))
+    eyes.ground_up(x, y, lat, reach).is_some_and(|s| {
+        let road = ground.road.refs(x);
+        not_road(s, &road, painted)
+            && ground.paving.is_none_or(|p| {
+                let paving = p.refs(x);
+                not_road(s, &paving, painted) && !is_mixed(s, &road, &paving)
+            })
+    })
+}
+
+/// The ground a bin scan expects: the asphalt, and where the scan covers a sidewalk, its
+/// paving too.
+#[derive(Clone, Copy)]
+struct Ground<'a> {
+    road: &'a RoadModel,
+    paving: Option<&'a RoadModel>,
+}
+
+/// Whether reading `s` is a mixture of two grounds' colours (`a`'s and `b`'s asphalt
+/// references): a patch straddling where one meets the other (the kerb between a shoulder
+/// and a sidewalk, seen from afar) reads as a blend of both, which is neither, but is still
+/// ground. The blend nearest `s` on the line between the two colours is taken as the
+/// reference.
+#[inline]
+fn is_mixed(s: Sample, a: &Refs, b: &Refs) -> bool {
+    let d = [
+        b.road[0] - a.road[0],
+        b.road[1] - a.road[1],
+        b.road[2] - a.road[2],
+    ];
+    let e = [s.c[0] - a.road[0], s.c[1] - a.road[1], s.c[2] - a.road[2]];
+    let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    if dd < 1.0 {
+        return false;
+    }
+    let t = ((e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / dd).clamp(0.0, 1.0);
+    let blend = Refs {
+        road: [
+            a.road[0] + t * d[0],
+            a.road[1] + t * d[1],
+            a.road[2] + t * d[2],
+        ],
+        gain: a.gain,
+    };
+    road_distance(s, &blend) <= 1.0
 }
 
 /// A ground reading that is neither asphalt nor paint; where `painted` (transverse paint at
@@ -1240,7 +1397,7 @@ fn first_blocked(
     xs: &[f64],
     centre: &dyn Fn(f64) -> f64,
     lane: Span,
-    road: &RoadModel,
+    ground: Ground<'_>,
     painted: &dyn Fn(f64, f64) -> bool,
 ) -> Vec<f64> {
     let Span { shift, inner, half } = lane;
@@ -1266,7 +1423,7 @@ fn first_blocked(
                 let room = (half - 0.1 - f64::from(b) * BIN * yr.signum()).max(0.05);
                 let reach = (x * room / (2.0 * yr.abs().max(1e-3))).clamp(0.3, 4.0);
                 let rise = if rises { reach } else { 0.0 };
-                let blocked = blocked_at(eyes, road, x, yr, lat, reach, painted(x, x + rise));
+                let blocked = blocked_at(eyes, ground, x, yr, lat, reach, painted(x, x + rise));
                 run = if blocked { run + 1 } else { 0 };
                 if run == 4 {
                     return xs[i - 3];
@@ -2604,6 +2761,153 @@ mod tests {
                     let w = frame(&wide, &things(wide), light, 1.0);
                     let t = frame(&tele, &things(tele), light, 1.0);
                     assert_eq!(read(&w, &t, &[]), None, "at {dist_m} m, light {light}");
+                }
+            }
+        }
+    }
+
+    /// The kerb scan on synthetic frames ray-cast from a street's geometry (not from the
+    /// renderer): asphalt, the lane's edge line, a shoulder, a sidewalk's paving and grass
+    /// beyond it, with or without a walker standing on the paving or the shoulder.
+    mod kerb_scan {
+        use super::super::*;
+        use fogline_types::clip::CameraCalib;
+
+        fn cams() -> (CameraCalib, CameraCalib) {
+            let mut wide = CameraCalib::standard(CameraId::FrontWide, 192, 144);
+            wide.fx = 96.0;
+            wide.fy = 96.0;
+            let tele = CameraCalib::standard(CameraId::FrontTele, 256, 192);
+            (wide, tele)
+        }
+
+        /// A walker: standing at `(x, y)` (its body's middle), 0.4 m deep, 0.5 m across,
+        /// 1.75 m tall; dark trousers below 0.9 m, a shirt above.
+        #[derive(Clone, Copy)]
+        struct Walker {
+            x: f64,
+            y: f64,
+            legs: [f32; 3],
+            shirt: [f32; 3],
+        }
+
+        /// The ground's colour at `(x, y)`: the lane centred on `y = 0` (3.5 m wide, its
+        /// right edge line 0.15 m wide), a 0.5 m shoulder, the kerb at y = −2.25, 3 m of
+        /// paving and grass beyond; the road's left half and the opposite lane up to 5.75.
+        fn ground(y: f64) -> [f32; 3] {
+            if (-1.85..=-1.70).contains(&y) {
+                [225.0, 225.0, 220.0]
+            } else if (-2.25..=5.75).contains(&y) {
+                [90.0, 90.0, 95.0]
+            } else if (-5.25..-2.25).contains(&y) {
+                [165.0, 163.0, 160.0]
+            } else {
+                [80.0, 120.0, 60.0]
+            }
+        }
+
+        /// A frame of `calib` of the street with `walker` on it, under `light`.
+        fn frame(calib: &CameraCalib, walker: Option<Walker>, light: f32) -> Vec<u8> {
+            let (w, h) = (calib.width as usize, calib.height as usize);
+            let o = [calib.x_m, calib.y_m, calib.z_m];
+            let mut rgb = vec![0u8; w * h * 3];
+            for v in 0..h {
+                for u in 0..w {
+                    let d = calib.ray(u as f64 + 0.5, v as f64 + 0.5);
+                    // The ground, where the ray meets it.
+                    let mut best = (f64::INFINITY, [150.0f32, 170.0, 200.0]);
+                    if d[2] < 0.0 {
+                        let t = -o[2] / d[2];
+                        best = (t, ground(o[1] + t * d[1]));
+                    }
+                    // The walker's box (slabs).
+                    if let Some(wk) = walker {
+                        let lo = [wk.x - 0.2, wk.y - 0.25, 0.0];
+                        let hi = [wk.x + 0.2, wk.y + 0.25, 1.75];
+                        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+                        for k in 0..3 {
+                            if d[k].abs() < 1e-12 {
+                                if o[k] < lo[k] || o[k] > hi[k] {
+                                    t0 = f64::INFINITY;
+                                }
+                                continue;
+                            }
+                            let (a, b) = ((lo[k] - o[k]) / d[k], (hi[k] - o[k]) / d[k]);
+                            t0 = t0.max(a.min(b));
+                            t1 = t1.min(a.max(b));
+                        }
+                        if t0 <= t1 && t0 < best.0 {
+                            let z = o[2] + t0 * d[2];
+                            best = (t0, if z < 0.9 { wk.legs } else { wk.shirt });
+                        }
+                    }
+                    for (k, x) in best.1.iter().enumerate() {
+                        rgb[(v * w + u) * 3 + k] = (x * light).round().clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+            rgb
+        }
+
+        fn scan(walker: Option<Walker>, light: f32) -> Option<LeadSeen> {
+            let (wide, tele) = cams();
+            let (w, t) = (frame(&wide, walker, light), frame(&tele, walker, light));
+            let eyes = Eyes {
+                wide: Some(View::plain(&wide, &w, Some(0.0))),
+                tele: Some(View::plain(&tele, &t, Some(0.0))),
+                past_wide: Vec::new(),
+                past_tele: Vec::new(),
+            };
+            let white = eyes.wide.as_ref().map_or(255.0, |v| v.white);
+            let gain = gain_of(white);
+            let centre = |_: f64| 0.0;
+            let road = road_model(&eyes, &centre, gain);
+            let no_paint = |_: f64, _: f64| false;
+            kerb_object(
+                &eyes,
+                &sample_distances(),
+                &centre,
+                1.75,
+                &road,
+                gain,
+                8.0,
+                &no_paint,
+            )
+        }
+
+        #[test]
+        fn an_empty_sidewalk_and_its_kerb_are_ground_by_day_and_by_night() {
+            for light in [1.0f32, 0.5] {
+                assert_eq!(scan(None, light), None, "light {light}");
+            }
+        }
+
+        #[test]
+        fn a_walker_on_the_sidewalk_or_the_shoulder_is_found_where_it_stands() {
+            let clothes = [
+                ([40.0f32, 38.0, 35.0], [40.0f32, 50.0, 110.0]),
+                ([70.0, 70.0, 120.0], [200.0, 60.0, 50.0]),
+            ];
+            for light in [1.0f32, 0.5] {
+                for (legs, shirt) in clothes {
+                    // From the shoulder to 2 m beyond the marking (where the towns' walkers
+                    // walk the sidewalk's middle); farther out, a body's shadow on the
+                    // ground leaves the strip too soon to be read.
+                    for y in [-2.0, -2.7, -3.5] {
+                        for x in [8.0, 12.0, 16.0, 20.0, 25.0, 30.0] {
+                            let walker = Walker { x, y, legs, shirt };
+                            let got = scan(Some(walker), light);
+                            let what = format!("light {light} {legs:?} at ({x}, {y}): {got:?}");
+                            let k = got.expect(&what);
+                            // Its near face, in metres ahead of the rear axle, and its edge
+                            // nearest the lane.
+                            // (Beyond 30 m the scan samples every 0.5 m and needs four
+                            // in a row.)
+                            let slack = if x < 28.0 { 1.5 } else { 2.5 };
+                            assert!((k.contact_x - (x - 0.2)).abs() <= slack, "{what}");
+                            assert!((k.left_edge - (y + 0.25)).abs() <= 0.35, "{what}");
+                        }
+                    }
                 }
             }
         }

@@ -209,6 +209,8 @@ pub struct Baseline {
     hidden_stop: bool,
     /// Seconds since a vehicle was last seen crossing the ego's path ahead.
     cross_quiet_s: f64,
+    /// The road user on the right kerb over the steps.
+    kerb: KerbWatch,
     junction_gap: JunctionGap,
     /// Where the latest crossing seen lies, in distance driven, m.
     zebra_at_m: Option<f64>,
@@ -288,6 +290,72 @@ pub fn walker_on_far_crossing(
     let standing =
         l.speed.abs() - 2.0 * l.speed_se < speed_scale && l.lateral_speed.abs() < 0.5 * speed_scale;
     on && seen && (towards || standing)
+}
+
+/// Half the width of the car's path for [`stepping_off_kerb`]: the car's half-width and a
+/// margin, m.
+pub const PATH_HALF_M: f64 = 1.25;
+
+/// How long after the car has passed a walker stepping off the kerb it may still reach the
+/// car's path and be yielded to, s (a walker who gets there later crosses behind the car).
+pub const KERB_MARGIN_S: f64 = 2.0;
+
+/// Speed towards the lane from which someone on the kerb is stepping off it, m/s (a walker
+/// crosses at 1–1.5 m/s).
+pub const KERB_STEP_MPS: f64 = 0.5;
+
+/// How far back [`KerbWatch`] compares readings, s (two or three planning steps).
+pub const KERB_WATCH_S: f64 = 0.9;
+
+/// Readings of the kerb this far apart along the road are taken for the same road user, m.
+pub const KERB_SAME_M: f64 = 1.5;
+
+/// The road user on the right kerb followed over the planning steps
+/// ([`fogline_planner::perceive::Perception::kerb_object`] is read from one step's frames):
+/// where its contact was (odometer position, m), its edge nearest the lane (m from the
+/// lane centre, left positive) and when (game time, s).
+#[derive(Debug, Default, Clone)]
+pub struct KerbWatch {
+    readings: std::collections::VecDeque<(f64, f64, f64)>,
+}
+
+impl KerbWatch {
+    /// Takes this step's reading (`at_m`, `edge_m`; `None` when nothing stands on the kerb)
+    /// at game time `t_s`, and returns how fast the road user moves towards the lane, m/s:
+    /// from the earliest reading within [`KERB_WATCH_S`] at the same place along the road
+    /// (within [`KERB_SAME_M`]), at least 0.3 s before; `None` without one.
+    pub fn update(&mut self, t_s: f64, reading: Option<(f64, f64)>) -> Option<f64> {
+        while self
+            .readings
+            .front()
+            .is_some_and(|r| r.2 < t_s - KERB_WATCH_S - 1e-9)
+        {
+            self.readings.pop_front();
+        }
+        let (at, edge) = reading?;
+        let towards = self
+            .readings
+            .iter()
+            .find(|r| (r.0 - at).abs() < KERB_SAME_M && t_s - r.2 >= 0.3)
+            .map(|r| (edge - r.1) / (t_s - r.2));
+        self.readings.push_back((at, edge, t_s));
+        towards
+    }
+}
+
+/// Whether someone on the right kerb is stepping off it into the car's path: moving towards
+/// the lane at [`KERB_STEP_MPS`] or more (`towards`, from [`KerbWatch`]), and due to reach
+/// the car's path (half-width [`PATH_HALF_M`]) from its edge nearest the lane (`edge`, m
+/// from the lane centre) before the car, driving at `speed_mps`, has passed its contact
+/// (`contact_x`, m ahead of the rear axle) by [`KERB_MARGIN_S`]. Someone standing at the
+/// kerb, or walking along the sidewalk, is not.
+pub fn stepping_off_kerb(towards: f64, edge: f64, contact_x: f64, speed_mps: f64) -> bool {
+    if towards < KERB_STEP_MPS {
+        return false;
+    }
+    let to_path = (-PATH_HALF_M - edge).max(0.0) / towards;
+    let to_pass = (contact_x - EGO_FRONT_M).max(0.0) / speed_mps.max(0.5);
+    to_path < to_pass + KERB_MARGIN_S
 }
 
 /// What the planner is given each step.
@@ -500,6 +568,7 @@ impl Baseline {
             lost: Vec::new(),
             hidden_stop: false,
             cross_quiet_s: 0.0,
+            kerb: KerbWatch::default(),
             junction_gap: JunctionGap::default(),
             zebra_at_m: None,
             signal_stop: false,
@@ -640,6 +709,7 @@ impl Baseline {
                 || self.zebra_at_m.is_some_and(|z| {
                     z - odometer_m > -2.0 && z - odometer_m < FAR_CROSSING_REACH_M
                 }),
+            kerb: self.driver.is_none(),
         };
         let out = self.planner.plan_knowing(&pin, &knowing);
         if let Some(driver) = &self.driver {
@@ -690,7 +760,7 @@ impl Baseline {
         };
         if log::log_enabled!(log::Level::Debug) {
             self.debug = format!(
-                "lead {:?} zebra {:?} line {:?} light {:?} sign {:?} end {:?} lane {:?} road {:.0}",
+                "lead {:?} kerb {:?} zebra {:?} line {:?} light {:?} sign {:?} end {:?} lane {:?} road {:.0}",
                 perc.lead.map(|l| (
                     (l.contact_x * 10.0).round() / 10.0,
                     l.kind,
@@ -700,6 +770,11 @@ impl Baseline {
                     (l.right_edge * 10.0).round() / 10.0,
                     (l.left_edge * 10.0).round() / 10.0,
                     (l.confidence * 100.0).round() / 100.0
+                )),
+                perc.kerb_object.map(|k| (
+                    (k.contact_x * 10.0).round() / 10.0,
+                    (k.right_edge * 10.0).round() / 10.0,
+                    (k.left_edge * 10.0).round() / 10.0,
                 )),
                 perc.zebra,
                 perc.stop_line,
@@ -787,6 +862,31 @@ impl Baseline {
                 perc.zebra.unwrap_or(f64::NAN),
                 perc.left_object
                     .map(|l| (l.contact_x, l.speed, l.lateral_speed))
+            );
+        }
+        // Someone stepping off the right kerb into the car's path: the car yields short of
+        // where they are, as to a walker in its lane (or stops at its nearer stop point).
+        let towards = self.kerb.update(
+            t_s,
+            perc.kerb_object
+                .map(|k| (odometer_m + k.contact_x, k.left_edge)),
+        );
+        if let Some((k, v)) = perc.kerb_object.zip(towards)
+            && stepping_off_kerb(v, k.left_edge, k.contact_x, speed_mps)
+        {
+            let at = k.contact_x - fogline_planner::plan::WALKER_GAP_M - EGO_FRONT_M;
+            let stops = matches!(
+                decision,
+                Decision::StopForRedLight | Decision::StopForSign | Decision::YieldToCrossing
+            );
+            if !stops || planned_stop.is_none_or(|p| at < p) {
+                decision = Decision::YieldToCrossing;
+                planned_stop = Some(at);
+            }
+            log::debug!(
+                "walker stepping off the kerb {:.1} m ahead: across {v:.1} m/s, edge {:.1} m",
+                k.contact_x,
+                k.left_edge
             );
         }
         // The planned stop point, or further back: 5.5 m before a crossing the planner sees
@@ -1620,6 +1720,45 @@ mod tests {
             gap.step(600.0, (false, false), false, dt);
         }
         assert!(!gap.step(600.0, (false, true), false, dt));
+    }
+
+    #[test]
+    fn someone_stepping_off_the_kerb_is_yielded_to_and_someone_walking_along_it_is_not() {
+        // Read every 0.4 s (the closed loop's planning steps), 25 m ahead of a car at 8 m/s.
+        let watch = |edge: &dyn Fn(f64) -> f64, at: &dyn Fn(f64) -> f64| {
+            let mut w = KerbWatch::default();
+            (0..4)
+                .map(|k| {
+                    let t = 100.0 + 0.4 * f64::from(k);
+                    w.update(t, Some((at(t - 100.0), edge(t - 100.0))))
+                })
+                .collect::<Vec<_>>()
+        };
+        // Walking towards the lane at 1.3 m/s: measured from the second reading on.
+        let v = watch(&|t| -3.5 + 1.3 * t, &|_| 500.0);
+        assert_eq!(v[0], None);
+        for got in &v[1..] {
+            assert!(got.is_some_and(|x| (x - 1.3).abs() < 1e-6), "{v:?}");
+        }
+        assert!(stepping_off_kerb(1.3, -3.5 + 1.3 * 1.2, 25.0, 8.0));
+        // Walking along the sidewalk at 1.4 m/s (the edge stays), or standing at the kerb.
+        let along = watch(&|_| -2.6, &|t| 500.0 - 1.4 * t);
+        assert!(along[1..].iter().all(|x| x.is_some_and(|x| x.abs() < 1e-6)));
+        assert!(!stepping_off_kerb(0.0, -2.6, 25.0, 8.0));
+        // Readings in different places are different road users: no speed.
+        let two = watch(&|t| -3.5 + 1.3 * t, &|t| 500.0 + 10.0 * t);
+        assert!(two.iter().all(Option::is_none), "{two:?}");
+        // A gap of more than KERB_WATCH_S between readings: no speed either.
+        let mut w = KerbWatch::default();
+        assert_eq!(w.update(0.0, Some((500.0, -3.5))), None);
+        assert_eq!(w.update(1.0, None), None);
+        assert_eq!(w.update(1.4, Some((500.0, -2.0))), None);
+        // Someone slow, far from the path, close ahead: the car has long passed when they
+        // get there; the same walker 30 m ahead, or one close to the path, is yielded to.
+        assert!(!stepping_off_kerb(0.6, -4.0, 8.0, 8.0));
+        assert!(stepping_off_kerb(0.6, -4.0, 30.0, 8.0));
+        assert!(stepping_off_kerb(1.3, -1.5, 8.0, 8.0));
+        assert!(!stepping_off_kerb(0.4, -1.5, 8.0, 8.0));
     }
 
     #[test]

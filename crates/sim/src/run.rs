@@ -780,7 +780,17 @@ pub fn run_route_with(
                     EventKind::CollisionPedestrian
                 };
                 if log::log_enabled!(log::Level::Debug) {
-                    let what = format!("{kind:?} walker {} event {}", w.id, w.event);
+                    // Which way it walked relative to the car: across to its left or
+                    // right, or along.
+                    let across = (w.yaw - ego.yaw_rad).sin();
+                    let way = if across > 0.5 {
+                        "to the left"
+                    } else if across < -0.5 {
+                        "to the right"
+                    } else {
+                        "along"
+                    };
+                    let what = format!("{kind:?} walker {} event {} walking {way}", w.id, w.event);
                     debug_collision(t, &what, &ego, w.pos, w.speed_mps, (&agent, rco_active));
                 }
                 let mut e = Event::new(kind, t, w.pos[0], w.pos[1]);
