@@ -2568,7 +2568,7 @@ mod tests {
         use fogline_types::clip::CameraCalib;
 
         /// The closed loop's cameras: wide 192 × 144 at 90°, tele 256 × 192 at 30°.
-        fn cams() -> (CameraCalib, CameraCalib) {
+        pub(super) fn cams() -> (CameraCalib, CameraCalib) {
             let mut wide = CameraCalib::standard(CameraId::FrontWide, 192, 144);
             wide.fx = 96.0;
             wide.fy = 96.0;
@@ -2771,15 +2771,8 @@ mod tests {
     /// beyond it, with or without a walker standing on the paving or the shoulder.
     mod kerb_scan {
         use super::super::*;
+        use super::stop_sign_reader::cams;
         use fogline_types::clip::CameraCalib;
-
-        fn cams() -> (CameraCalib, CameraCalib) {
-            let mut wide = CameraCalib::standard(CameraId::FrontWide, 192, 144);
-            wide.fx = 96.0;
-            wide.fy = 96.0;
-            let tele = CameraCalib::standard(CameraId::FrontTele, 256, 192);
-            (wide, tele)
-        }
 
         /// A walker: standing at `(x, y)` (its body's middle), 0.4 m deep, 0.5 m across,
         /// 1.75 m tall; dark trousers below 0.9 m, a shirt above.
