@@ -732,10 +732,7 @@ fn kerb_object(
     // other, the contact may read up to a metre beyond the body.)
     let covered = |on: f64, y: f64| {
         eyes.ground(on, kerb_centre(on) + y, 0.05, 0.2)
-            .is_some_and(|s| {
-                let (r, p) = (road.refs(on), paving.refs(on));
-                not_road(s, &r, false) && not_road(s, &p, false) && !is_mixed(s, &r, &p)
-            })
+            .is_some_and(|s| ground.rejects(s, on, false))
     };
     let start = edge;
     for k in 0..=7 {
@@ -1178,14 +1175,8 @@ fn blocked_at(
     reach: f64,
     painted: bool,
 ) -> bool {
-    eyes.ground_up(x, y, lat, reach).is_some_and(|s| {
-        let road = ground.road.refs(x);
-        not_road(s, &road, painted)
-            && ground.paving.is_none_or(|p| {
-                let paving = p.refs(x);
-                not_road(s, &paving, painted) && !is_mixed(s, &road, &paving)
-            })
-    })
+    eyes.ground_up(x, y, lat, reach)
+        .is_some_and(|s| ground.rejects(s, x, painted))
 }
 
 /// The ground a bin scan expects: the asphalt, and where the scan covers a sidewalk, its
@@ -1194,6 +1185,20 @@ fn blocked_at(
 struct Ground<'a> {
     road: &'a RoadModel,
     paving: Option<&'a RoadModel>,
+}
+
+impl Ground<'_> {
+    /// Whether reading `s` of ground `x` m ahead is none of this ground: not its asphalt
+    /// (nor paint, where `painted`), not its paving, nor a blend of the two.
+    #[inline]
+    fn rejects(&self, s: Sample, x: f64, painted: bool) -> bool {
+        let road = self.road.refs(x);
+        not_road(s, &road, painted)
+            && self.paving.is_none_or(|p| {
+                let paving = p.refs(x);
+                not_road(s, &paving, painted) && !is_mixed(s, &road, &paving)
+            })
+    }
 }
 
 /// Whether reading `s` is a mixture of two grounds' colours (`a`'s and `b`'s asphalt

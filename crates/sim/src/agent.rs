@@ -294,7 +294,7 @@ pub fn walker_on_far_crossing(
 
 /// Half the width of the car's path for [`stepping_off_kerb`]: the car's half-width and a
 /// margin, m.
-pub const PATH_HALF_M: f64 = 1.25;
+pub const PATH_HALF_M: f64 = fogline_types::motion::EGO_WIDTH_M / 2.0 + 0.3;
 
 /// How long after the car has passed a walker stepping off the kerb it may still reach the
 /// car's path and be yielded to, s (a walker who gets there later crosses behind the car).
