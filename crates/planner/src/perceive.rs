@@ -2138,12 +2138,23 @@ fn veiled_lamp(view: &View<'_>, s: Sample, (u, v): (usize, usize), k: usize) -> 
     lamp_colour_over(s, housing?, view.white)
 }
 
+/// The farthest a signal head is read, m (the world's junctions put a head up to about
+/// 90 m ahead of a car that begins braking for it).
+const LAMP_READ_MAX_M: f64 = 100.0;
+/// Height of the lowest lamp's lower edge (the green lamp, centre 4.88 m), m.
+const LAMP_LOWEST_M: f64 = 4.7;
+
 /// Lit lamps above the horizon: the colour with the most lamp pixels in one compact
 /// cluster, and a distance from the lamp's elevation (signal heads hang about 5 m up).
 fn traffic_light(eyes: &Eyes<'_>, lost: &[Lost]) -> Option<(Lamp, f64)> {
     for view in [&eyes.tele, &eyes.wide].into_iter().flatten() {
         let cy = view.calib.cy;
-        let top = (cy - 2.0).max(0.0) as usize;
+        // Nothing nearer the horizon than the lowest lamp seen from `LAMP_READ_MAX_M`: the
+        // band just above it holds the far street (the red outline of a walker's mask, tail
+        // lights on a crest), which read as heads hundreds of metres away (traced: seed 0
+        // route 34, a red 'seen' 750 m off held the car at a stop sign's line).
+        let rows_far = view.calib.fy * (LAMP_LOWEST_M - view.calib.z_m) / LAMP_READ_MAX_M;
+        let top = (cy - rows_far.max(2.0)).max(0.0) as usize;
         let w = view.width();
         let lo = (w as f64 * 0.2) as usize;
         let hi = (w as f64 * 0.8) as usize;
@@ -2583,12 +2594,17 @@ mod tests {
 
         /// What a frame shows at each pixel: `None` for the background (sky above the
         /// horizon, asphalt below).
-        type Painter<'a> = &'a dyn Fn([f64; 3]) -> Option<[f32; 3]>;
+        pub(super) type Painter<'a> = &'a dyn Fn([f64; 3]) -> Option<[f32; 3]>;
 
         /// A frame of `calib` with solids painted by `paint`, which gets the ray (rig frame,
         /// unit along the optical axis); `veil` is the Koschmieder transmission of
         /// everything painted (airlight 204), `light` the scene's light.
-        fn frame(calib: &CameraCalib, paint: Painter<'_>, light: f32, veil: f32) -> Vec<u8> {
+        pub(super) fn frame(
+            calib: &CameraCalib,
+            paint: Painter<'_>,
+            light: f32,
+            veil: f32,
+        ) -> Vec<u8> {
             let (w, h) = (calib.width as usize, calib.height as usize);
             let mut rgb = vec![0u8; w * h * 3];
             for v in 0..h {
@@ -2613,7 +2629,7 @@ mod tests {
         }
 
         /// Where the ray from `calib`'s camera meets the plane `x = x_m`, as `(y, z)`.
-        fn on_plane(calib: &CameraCalib, ray: [f64; 3], x_m: f64) -> Option<(f64, f64)> {
+        pub(super) fn on_plane(calib: &CameraCalib, ray: [f64; 3], x_m: f64) -> Option<(f64, f64)> {
             if ray[0] <= 1e-9 {
                 return None;
             }
@@ -2652,7 +2668,11 @@ mod tests {
 
         /// Draws a deficit's mask over the pixel box `(u0, v0, u1, v1)`: black inside a
         /// 2-pixel outline of pure red (as `fogline-perturb` draws it).
-        fn mask(rgb: &mut [u8], w: usize, (u0, v0, u1, v1): (usize, usize, usize, usize)) {
+        pub(super) fn mask(
+            rgb: &mut [u8],
+            w: usize,
+            (u0, v0, u1, v1): (usize, usize, usize, usize),
+        ) {
             for v in v0..v1 {
                 for u in u0..u1 {
                     let ring = u < u0 + 2 || u + 2 >= u1 || v < v0 + 2 || v + 2 >= v1;
@@ -2907,6 +2927,83 @@ mod tests {
                         }
                     }
                 }
+            }
+        }
+    }
+
+    /// The lamp reader on synthetic frames: a lit signal head where the towns hang one,
+    /// and the far street's red things that sit just above the horizon.
+    mod lamp_reader {
+        use super::super::*;
+        use super::stop_sign_reader::{cams, frame, mask, on_plane};
+        use fogline_types::clip::CameraCalib;
+
+        fn read(wide_rgb: &[u8], tele_rgb: &[u8]) -> Option<(Lamp, f64)> {
+            let (wide, tele) = cams();
+            let eyes = Eyes {
+                wide: Some(View::plain(&wide, wide_rgb, Some(0.0))),
+                tele: Some(View::plain(&tele, tele_rgb, Some(0.0))),
+                past_wide: Vec::new(),
+                past_tele: Vec::new(),
+            };
+            traffic_light(&eyes, &[])
+        }
+
+        #[test]
+        fn a_red_head_is_read_with_its_distance() {
+            let (wide, tele) = cams();
+            for dist_m in [12.0, 25.0, 40.0, 60.0] {
+                // A dark housing 0.4 × 1.1 m, 1.5 m left of the camera, its red lamp lit
+                // (0.15 m radius, centre 5.52 m up).
+                let head = |c: CameraCalib| {
+                    move |ray: [f64; 3]| {
+                        let (y, z) = on_plane(&c, ray, c.x_m + dist_m)?;
+                        if (y - 1.5).powi(2) + (z - 5.52).powi(2) <= 0.15f64.powi(2) {
+                            Some([255.0, 40.0, 30.0])
+                        } else if (y - 1.5).abs() <= 0.2 && (z - 5.2).abs() <= 0.55 {
+                            Some([30.0, 30.0, 30.0])
+                        } else {
+                            None
+                        }
+                    }
+                };
+                let w = frame(&wide, &head(wide), 1.0, 1.0);
+                let t = frame(&tele, &head(tele), 1.0, 1.0);
+                let (lamp, d) = read(&w, &t).unwrap_or_else(|| panic!("no lamp at {dist_m} m"));
+                assert_eq!(lamp, Lamp::Red, "at {dist_m} m");
+                let from_camera = d - tele.x_m;
+                assert!(
+                    (from_camera - dist_m).abs() < 0.2 * dist_m,
+                    "{from_camera:.1} m for a head {dist_m} m off"
+                );
+            }
+        }
+
+        #[test]
+        fn a_masked_walker_far_down_the_street_is_no_red_lamp() {
+            // Before the reader kept to the rows of heads within `LAMP_READ_MAX_M`, the top
+            // of a far walker's mask (a red outline just above the horizon) read as a red
+            // head hundreds of metres off, and the car stopped for it at a nearer
+            // junction's line.
+            let (wide, tele) = cams();
+            let empty = |_: [f64; 3]| None;
+            for dist_m in [40.0, 80.0, 150.0, 400.0] {
+                let mut w = frame(&wide, &empty, 1.0, 1.0);
+                let mut t = frame(&tele, &empty, 1.0, 1.0);
+                for (c, rgb) in [(&wide, &mut w), (&tele, &mut t)] {
+                    // A walker 1.8 m tall and 0.6 m wide in the lane, boxed 2 px wide.
+                    let x = c.x_m + dist_m;
+                    let (u0, v0, _) = c.project([x, 0.3, 1.8]).expect("ahead");
+                    let (u1, v1, _) = c.project([x, -0.3, 0.0]).expect("ahead");
+                    let b = (
+                        u0.floor() as usize - 2,
+                        v0.floor() as usize - 2,
+                        u1.ceil() as usize + 2,
+                        v1.ceil() as usize + 2,
+                    );
+                    mask(rgb, c.width as usize, b);
+                }
+                assert_eq!(read(&w, &t), None, "walker masked {dist_m} m off");
             }
         }
     }

@@ -32,6 +32,9 @@ pub struct Plan {
 
 /// Where no crossing is nearer, the car yields this far short of a walker in its lane, m.
 pub const WALKER_GAP_M: f64 = 2.5;
+/// The farthest a red light's head stands beyond its stop line, m (the far side of a wide
+/// junction: a crossing, the cross road's lanes and shoulders).
+pub const LIGHT_TO_LINE_MAX_M: f64 = 40.0;
 
 /// Decides and plans.
 pub fn plan(p: &Perception) -> Plan {
@@ -67,9 +70,12 @@ pub fn plan(p: &Perception) -> Plan {
     if let Some((lamp, d_light)) = p.light
         && lamp != Lamp::Green
     {
+        // The line of this light's junction: short of the head, by less than a junction's
+        // width and the crossing before it (a line far short of it belongs to another
+        // junction on the way, where the car would wait for a green that never comes).
         let line = p
             .stop_line
-            .filter(|&s| s < d_light)
+            .filter(|&s| s < d_light && d_light - s < LIGHT_TO_LINE_MAX_M)
             .unwrap_or((d_light - 13.5).max(2.0));
         let stop_at = line - EGO_FRONT_M - 0.5;
         let traj = rollout(
@@ -346,4 +352,58 @@ fn say_keep(kappa: f64, saw_lane: bool) -> String {
         "Stay centred in the lane; nothing ahead requires action.",
     ];
     pick(&o, bucket(kappa.abs() * 1000.0, 1.0) + 10).to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::perceive::ImageQuality;
+
+    /// A straight empty lane at 6 m/s, nothing else seen.
+    fn open_road() -> Perception {
+        Perception {
+            speed: 6.0,
+            kappa_history: 0.0,
+            kappa: 0.0,
+            lane_width: 3.5,
+            lane_offset: 0.0,
+            lane_heading: 0.0,
+            lane: None,
+            road_lum: 90.0,
+            lead: None,
+            left_lane_free: false,
+            road_end: None,
+            right_branch: false,
+            stop_line: None,
+            zebra: None,
+            light: None,
+            stop_sign: None,
+            quality: ImageQuality {
+                noise_sigma: 0.0,
+                white: 255.0,
+                gain: 1.0,
+            },
+            left_object: None,
+            kerb_object: None,
+        }
+    }
+
+    #[test]
+    fn a_red_light_stops_the_car_at_its_own_junctions_line_not_at_a_nearer_one() {
+        let front = EGO_FRONT_M + 0.5;
+        // The head 24 m off, its line 9 m short of it: the car stops 0.5 m before the line.
+        let mut p = open_road();
+        p.light = Some((Lamp::Red, 24.0));
+        p.stop_line = Some(15.0);
+        let plan = plan(&p);
+        assert_eq!(plan.decision, Decision::StopForRedLight);
+        assert!((plan.stop_at.expect("stops") - (15.0 - front)).abs() < 1e-9);
+        // A head 90 m off and a line 15 m ahead: the line is another junction's (a stop
+        // sign's, say); the car plans to stop short of the far head, not at that line.
+        p.light = Some((Lamp::Red, 90.0));
+        let plan = super::plan(&p);
+        assert_eq!(plan.decision, Decision::StopForRedLight);
+        let at = plan.stop_at.expect("stops");
+        assert!((at - (90.0 - 13.5 - front)).abs() < 1e-9, "stops at {at}");
+    }
 }

@@ -23,7 +23,10 @@
 //! **Red lights**: once the planner decided to stop for a red or amber light, the agent keeps
 //! that stop point (in distance driven; the latest estimate while the light is seen, as the
 //! stop line is found only close up) until the planner reports a green light or the car is
-//! more than 1 m past it — the signal head leaves the cameras' view as the car gets close.
+//! more than 1 m past it — the signal head leaves the cameras' view as the car gets close;
+//! only a stop point within [`RED_MEMORY_REACH_M`] is kept ([`red_memory`]), and a zebra
+//! crossing counts for a red light only when it lies less than
+//! [`fogline_planner::plan::LIGHT_TO_LINE_MAX_M`] short of the head.
 //!
 //! Before a turn of the route the target is capped so that the car reaches 4 m/s (right) or
 //! 5.5 m/s (left) at the junction, braking at 2 m/s². A speed PID (kp 0.8, ki 0.1 1/s,
@@ -63,6 +66,7 @@ use std::sync::Arc;
 use fogline_planner::ReferencePlanner;
 use fogline_planner::detect::ObjectSeen;
 use fogline_planner::perceive::{Lamp, LeadSeen, Lost, ObjectKind};
+use fogline_planner::plan::LIGHT_TO_LINE_MAX_M;
 use fogline_types::clip::{CameraInput, Decision, EgoPose, PlannerInput};
 use fogline_types::motion::EGO_FRONT_M;
 use fogline_types::planner::{PlanRequest, Planner};
@@ -251,6 +255,24 @@ pub const HIDDEN_SIGNAL_QUIET_S: f64 = 4.0;
 
 /// A hidden signal's stop line farther than this is not stopped for yet, m.
 pub const HIDDEN_SIGNAL_REACH_M: f64 = 30.0;
+
+/// A red light's stop point is remembered (kept while the head leaves the cameras' view)
+/// only within this distance, m.
+pub const RED_MEMORY_REACH_M: f64 = 50.0;
+
+/// The red light's stop point to remember (in distance driven) after a red-light decision
+/// whose stop point is `ahead_m` ahead at `odometer_m`, `kept` the one remembered so far: the
+/// latest estimate while the light is seen (the stop line is found only as the car gets
+/// close, and an early guess from the light's distance alone can be metres short), but only
+/// within [`RED_MEMORY_REACH_M`] — a far one is read again on the way, and one remembered
+/// far ahead could hold the car where no light is.
+pub fn red_memory(kept: Option<f64>, odometer_m: f64, ahead_m: f64) -> Option<f64> {
+    if ahead_m <= RED_MEMORY_REACH_M {
+        Some(odometer_m + ahead_m)
+    } else {
+        kept
+    }
+}
 
 /// A crossing the planner sees closer than this caps the speed at `zebra_mps`, m.
 pub const ZEBRA_CAUTION_M: f64 = 20.0;
@@ -899,9 +921,16 @@ impl Baseline {
                 || plan.trajectory.xy.last().map_or(0.0, |q| q[0].hypot(q[1])),
                 |d| d.max(0.0),
             );
+            // A crossing short of the red light's head by more than a junction's width is
+            // another junction's (traced: a head read 70–110 m down the road put the stop
+            // before the crossing of the stop-sign junction the car had just stopped at, and
+            // the car waited there for a green it could not see).
             let before_zebra = perc
                 .zebra
-                .filter(|&z| perc.light.is_none_or(|(_, d)| z < d))
+                .filter(|&z| {
+                    perc.light
+                        .is_none_or(|(_, d)| z < d && d - z < LIGHT_TO_LINE_MAX_M)
+                })
                 .map(|z| z - CROSSING_GAP_M - EGO_FRONT_M);
             match before_zebra {
                 Some(b) if b < planned + 8.0 && !walker_beyond => planned.min(b.max(0.0)),
@@ -918,7 +947,9 @@ impl Baseline {
             // The latest estimate while the light is seen: the stop line is found only as
             // the car gets close, and an early guess from the light's distance alone can be
             // metres short.
-            Decision::StopForRedLight => self.red_stop_at_m = Some(odometer_m + stop_dist()),
+            Decision::StopForRedLight => {
+                self.red_stop_at_m = red_memory(self.red_stop_at_m, odometer_m, stop_dist());
+            }
             Decision::ProceedOnGreen => self.red_stop_at_m = None,
             _ => {}
         }
@@ -1836,6 +1867,17 @@ mod tests {
         assert!(!c);
         let (stop, c) = UnstickSignal::read(Some(Lamp::Red), 0.0, c);
         assert!(!UnstickSignal::waits(stop, c));
+    }
+
+    #[test]
+    fn a_red_lights_stop_point_is_remembered_only_when_near() {
+        // Seen at 30 m: remembered; a closer estimate replaces it.
+        let m = red_memory(None, 100.0, 30.0);
+        assert_eq!(m, Some(130.0));
+        assert_eq!(red_memory(m, 110.0, 18.5), Some(128.5));
+        // A red 'seen' 700 m off (a phantom) neither sets a memory nor moves the near one.
+        assert_eq!(red_memory(None, 100.0, 700.0), None);
+        assert_eq!(red_memory(Some(128.5), 112.0, 700.0), Some(128.5));
     }
 
     #[test]

@@ -62,7 +62,7 @@
 //!   side's view has no immediate hazard and no inferred hazard, else `move_forward`.
 //! - *P4 speed*: an immediate hazard in a front view → `stop` + `quick_deceleration`;
 //!   turning or changing lanes towards a side view with an immediate hazard →
-//!   `deceleration`; with inferred hazards near enough to matter (within 30 m ahead and 8 m
+//!   `deceleration` above `creep_speed_mps`, else `constant_speed` (a creep); with inferred hazards near enough to matter (within 30 m ahead and 8 m
 //!   to a side, or of unknown place), `deceleration` above `cautious_speed_mps`, else
 //!   `constant_speed`; without hazards, `acceleration` below `cruise_speed_mps` (capped by
 //!   the speed limit) for the first step, else `constant_speed`.
@@ -103,6 +103,9 @@ use crate::observation::{
 pub struct RulesParams {
     /// With inferred hazards, decelerate above this speed, m/s.
     pub cautious_speed_mps: f64,
+    /// Turning towards a side view with an immediate hazard that is not crossing (rule S2
+    /// stops for those), decelerate above this speed and creep at it, m/s.
+    pub creep_speed_mps: f64,
     /// Without hazards, accelerate below this speed, m/s.
     pub cruise_speed_mps: f64,
     /// Rule S3's window after a finished stop-observe-move, ticks.
@@ -117,6 +120,7 @@ impl Default for RulesParams {
     fn default() -> Self {
         Self {
             cautious_speed_mps: 4.0,
+            creep_speed_mps: 1.5,
             cruise_speed_mps: 8.0,
             resume_window_ticks: 100,
             vru_wait_ticks: 10,
@@ -670,11 +674,17 @@ fn move_plan(ctx: &QueryContext<'_>, p: &RulesParams) -> serde_json::Value {
             SpeedControl::QuickDeceleration,
         )
     } else if towards_immediate {
-        (
-            behavior,
-            SpeedControl::Deceleration,
-            SpeedControl::Deceleration,
-        )
+        // A road user close on the side the car turns to that is not crossing (S2 stops
+        // for one that is): the car slows to a creep and goes on turning at it. Holding a
+        // deceleration from a standstill held the car for good (traced: seed 2 route 5,
+        // pedestrian deficit, a walker masked at the corner of a right turn, blocked after
+        // 180 s on a green).
+        let slow = if v > p.creep_speed_mps {
+            SpeedControl::Deceleration
+        } else {
+            SpeedControl::ConstantSpeed
+        };
+        (behavior, slow, slow)
     } else if !hazards.is_empty() {
         if v > p.cautious_speed_mps {
             (

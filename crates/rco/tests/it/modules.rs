@@ -302,6 +302,41 @@ fn rules_move_plan_lengths_and_conditions() {
 }
 
 #[test]
+fn rules_creep_past_a_road_user_close_on_the_side_the_car_turns_to() {
+    // Turning right with a large deficit (an immediate hazard, not crossing) in the right
+    // view: above the creep speed the car slows; at or below it, it creeps on turning
+    // rather than holding a deceleration from a standstill.
+    let mut rules = RulesBackend::default();
+    for (speed, expect) in [
+        (5.0, SpeedControl::Deceleration),
+        (1.5, SpeedControl::ConstantSpeed),
+        (0.0, SpeedControl::ConstantSpeed),
+    ] {
+        let mut obs = with_deficit(
+            clean(0),
+            CameraId::CrossRight,
+            PixelBox::new(200.0, 60.0, 150.0, 200.0),
+        );
+        obs.ego.speed_mps = speed;
+        obs.navigation.direction = fogline_rco::NavDirection::Right;
+        let hist = [obs];
+        let a = verifier::assess(None, &hist[0], &VIEWS, &VerifierParams::default());
+        assert_eq!(a.state(CameraId::CrossRight), HazardState::ImmediateHazard);
+        let q = prompt::move_query(ctx(&hist, &a, None));
+        let steps = answer::parse_move(&rules.answer(&q).unwrap(), &VIEWS, 5).unwrap();
+        assert_eq!(steps.len(), 1, "at {speed} m/s");
+        assert_eq!(
+            steps[0].action,
+            Action {
+                behavior: Behavior::TurnRight,
+                speed: expect
+            },
+            "at {speed} m/s"
+        );
+    }
+}
+
+#[test]
 fn rules_constraints_for_the_papers_example_context() {
     let mut rules = RulesBackend::default();
     let story = synth::story();
