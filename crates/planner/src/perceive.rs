@@ -2654,7 +2654,12 @@ mod tests {
             }
         }
 
-        fn read(wide_rgb: &[u8], tele_rgb: &[u8], lost: &[Lost]) -> Option<f64> {
+        /// `f` on the eyes of these cameras' clean frames (no earlier frames).
+        pub(super) fn with_eyes<R>(
+            wide_rgb: &[u8],
+            tele_rgb: &[u8],
+            f: impl FnOnce(&Eyes<'_>) -> R,
+        ) -> R {
             let (wide, tele) = cams();
             let eyes = Eyes {
                 wide: Some(View::plain(&wide, wide_rgb, Some(0.0))),
@@ -2662,8 +2667,14 @@ mod tests {
                 past_wide: Vec::new(),
                 past_tele: Vec::new(),
             };
-            let white = eyes.wide.as_ref().map_or(255.0, |v| v.white);
-            stop_sign(&eyes, gain_of(white), lost)
+            f(&eyes)
+        }
+
+        fn read(wide_rgb: &[u8], tele_rgb: &[u8], lost: &[Lost]) -> Option<f64> {
+            with_eyes(wide_rgb, tele_rgb, |eyes| {
+                let white = eyes.wide.as_ref().map_or(255.0, |v| v.white);
+                stop_sign(eyes, gain_of(white), lost)
+            })
         }
 
         /// Draws a deficit's mask over the pixel box `(u0, v0, u1, v1)`: black inside a
@@ -2935,18 +2946,11 @@ mod tests {
     /// and the far street's red things that sit just above the horizon.
     mod lamp_reader {
         use super::super::*;
-        use super::stop_sign_reader::{cams, frame, mask, on_plane};
+        use super::stop_sign_reader::{cams, frame, mask, on_plane, with_eyes};
         use fogline_types::clip::CameraCalib;
 
         fn read(wide_rgb: &[u8], tele_rgb: &[u8]) -> Option<(Lamp, f64)> {
-            let (wide, tele) = cams();
-            let eyes = Eyes {
-                wide: Some(View::plain(&wide, wide_rgb, Some(0.0))),
-                tele: Some(View::plain(&tele, tele_rgb, Some(0.0))),
-                past_wide: Vec::new(),
-                past_tele: Vec::new(),
-            };
-            traffic_light(&eyes, &[])
+            with_eyes(wide_rgb, tele_rgb, |eyes| traffic_light(eyes, &[]))
         }
 
         #[test]
