@@ -193,42 +193,8 @@ pub fn find_deficits(
                     >= 2
         })
         .collect();
-    // Connected groups of red pixels (8-neighbourhood), by an explicit stack.
-    let mut label = vec![u32::MAX; width * height];
-    let mut found = Vec::new();
-    let mut stack = Vec::new();
-    for start in 0..red.len() {
-        if !red[start] || label[start] != u32::MAX {
-            continue;
-        }
-        let id = found.len() as u32;
-        let (mut x0, mut y0, mut x1, mut y1) = (width, height, 0, 0);
-        label[start] = id;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            let (x, y) = (i % width, i / width);
-            x0 = x0.min(x);
-            y0 = y0.min(y);
-            x1 = x1.max(x + 1);
-            y1 = y1.max(y + 1);
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx < 0 || ny < 0 || nx >= width as i64 || ny >= height as i64 {
-                        continue;
-                    }
-                    let j = ny as usize * width + nx as usize;
-                    if red[j] && label[j] == u32::MAX {
-                        label[j] = id;
-                        stack.push(j);
-                    }
-                }
-            }
-        }
-        found.push((x0, y0, x1, y1));
-    }
     let mut out = Vec::new();
-    for (x0, y0, x1, y1) in found {
+    for (x0, y0, x1, y1) in groups(&red, width, height, |_| true) {
         // The smallest deficit worth reporting: a 2-pixel ring, then a 1-pixel margin, around
         // at least 2 × 2 pixels of fill.
         if x1 - x0 < 8 || y1 - y0 < 8 {
@@ -335,6 +301,189 @@ pub fn find_deficits(
     Ok(out)
 }
 
+/// The bounding boxes `(x0, y0, x1, y1)` (ends exclusive) of the connected groups of `set`
+/// pixels (8-neighbourhood), in the order of their first pixel; `counted` picks which of a
+/// group's pixels its box covers (a group with none of them is left out).
+fn groups(
+    set: &[bool],
+    width: usize,
+    height: usize,
+    counted: impl Fn(usize) -> bool,
+) -> Vec<(usize, usize, usize, usize)> {
+    let mut seen = vec![false; set.len()];
+    let mut found = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..set.len() {
+        if !set[start] || seen[start] {
+            continue;
+        }
+        let (mut x0, mut y0, mut x1, mut y1) = (width, height, 0, 0);
+        seen[start] = true;
+        stack.push(start);
+        while let Some(i) = stack.pop() {
+            let (x, y) = (i % width, i / width);
+            if counted(i) {
+                x0 = x0.min(x);
+                y0 = y0.min(y);
+                x1 = x1.max(x + 1);
+                y1 = y1.max(y + 1);
+            }
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx < 0 || ny < 0 || nx >= width as i64 || ny >= height as i64 {
+                        continue;
+                    }
+                    let j = ny as usize * width + nx as usize;
+                    if set[j] && !seen[j] {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+        if x1 > x0 {
+            found.push((x0, y0, x1, y1));
+        }
+    }
+    found
+}
+
+/// A vehicle-like road user moving in the view of a camera that stood still: a group of
+/// pixels whose luminance changed between two frames, wider than tall, standing on the
+/// ground.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoverSeen {
+    /// Left column (inclusive) of the changed pixels, px.
+    pub x0: u32,
+    /// Top row (inclusive), px.
+    pub y0: u32,
+    /// Right column (exclusive), px.
+    pub x1: u32,
+    /// Bottom row (exclusive), px.
+    pub y1: u32,
+    /// Changed pixels in the group.
+    pub changed: u32,
+    /// Bearing of the group's bottom centre in the rig frame, radians (0 straight ahead,
+    /// left positive).
+    pub bearing_rad: f64,
+}
+
+/// A pixel whose luminance `(R + 2G + B) / 4` changed by more than this between the two
+/// frames has changed, at the least (0–255 scale); with sensor noise the bar is
+/// [`MOVER_NOISE_SIGMAS`] times the noise of the difference, estimated from its median
+/// absolute value (most of a still scene does not move). The closed loop's frames of a
+/// still scene are identical (its atmosphere is deterministic): the floor is what a dark
+/// car 40 m off in heavy rain still changes.
+pub const MOVER_DIFF_LUM: i32 = 4;
+
+/// The change threshold in standard deviations of the difference's noise.
+pub const MOVER_NOISE_SIGMAS: f64 = 4.0;
+
+/// The fewest changed pixels a mover has (fewer is a flicker, not a road user).
+pub const MOVER_MIN_CHANGED: u32 = 3;
+
+/// The vehicle-like road users that moved between `before` and `now`, two RGB8 frames of
+/// the camera `calib` taken while it stood still (the car waiting at a line): groups of
+/// changed pixels (one pixel of gap bridged; a uniformly coloured car changes only at its
+/// leading and trailing edges, which are joined), whose changed pixels span more columns
+/// than rows (a car seen from any side is wider than tall; a walker is not, even with the
+/// ground it covered between the frames, nor are the few pixels of a far walker's legs) and whose bottom lies below the horizon (on the ground: a
+/// lamp changing colour above the road is no mover). A classic motion detector for a
+/// static camera; it says nothing when the camera moved.
+pub fn movers(
+    before: &[u8],
+    now: &[u8],
+    calib: &CameraCalib,
+) -> Result<Vec<MoverSeen>, PlannerError> {
+    let (width, height) = (calib.width as usize, calib.height as usize);
+    let expect = width * height * 3;
+    if width == 0 || height == 0 || before.len() != expect || now.len() != expect {
+        return Err(PlannerError::Input(format!(
+            "frames of {} and {} bytes, expected {width}x{height} RGB8 ({expect} bytes) each",
+            before.len(),
+            now.len()
+        )));
+    }
+    let lum = |p: &[u8]| (i32::from(p[0]) + 2 * i32::from(p[1]) + i32::from(p[2])) / 4;
+    let diff: Vec<u8> = before
+        .chunks_exact(3)
+        .zip(now.chunks_exact(3))
+        .map(|(a, b)| (lum(a) - lum(b)).unsigned_abs() as u8)
+        .collect();
+    // The noise of the difference from its median absolute value (a histogram: luminance
+    // differences are 0–255); σ = 1.4826 × MAD for Gaussian noise.
+    let mut hist = [0usize; 256];
+    for &d in &diff {
+        hist[usize::from(d)] += 1;
+    }
+    let (mut below, mut median) = (0usize, 0usize);
+    for (v, &n) in hist.iter().enumerate() {
+        below += n;
+        if 2 * below >= diff.len() {
+            median = v;
+            break;
+        }
+    }
+    let bar = f64::from(MOVER_DIFF_LUM).max(MOVER_NOISE_SIGMAS * 1.4826 * median as f64);
+    let changed: Vec<bool> = diff.iter().map(|&d| f64::from(d) > bar).collect();
+    // Bridge one pixel: a changed pixel's 3 × 3 neighbourhood joins its group.
+    let mut bridged = changed.clone();
+    for (i, _) in changed.iter().enumerate().filter(|(_, c)| **c) {
+        let (x, y) = (i % width, i / width);
+        for ny in y.saturating_sub(1)..(y + 2).min(height) {
+            for nx in x.saturating_sub(1)..(x + 2).min(width) {
+                bridged[ny * width + nx] = true;
+            }
+        }
+    }
+    // A uniformly coloured body changes only at its leading and trailing edges: two groups
+    // with the same rows (top and bottom within a pixel or a fifth of the height) and a gap
+    // of at most four heights between them are one road user.
+    let mut found = groups(&bridged, width, height, |i| changed[i]);
+    let mut merged = true;
+    while merged {
+        merged = false;
+        'pairs: for a in 0..found.len() {
+            for b in a + 1..found.len() {
+                let (p, q) = (found[a], found[b]);
+                let tall = (p.3 - p.1).max(q.3 - q.1);
+                let slack = (tall / 5).max(1);
+                let gap = q.0.saturating_sub(p.2).max(p.0.saturating_sub(q.2));
+                if p.1.abs_diff(q.1) <= slack && p.3.abs_diff(q.3) <= slack && gap <= 4 * tall {
+                    found[a] = (p.0.min(q.0), p.1.min(q.1), p.2.max(q.2), p.3.max(q.3));
+                    found.swap_remove(b);
+                    merged = true;
+                    break 'pairs;
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (x0, y0, x1, y1) in found {
+        let count = (y0..y1)
+            .flat_map(|y| (x0..x1).map(move |x| y * width + x))
+            .filter(|&i| changed[i])
+            .count() as u32;
+        if count < MOVER_MIN_CHANGED || x1 - x0 <= y1 - y0 {
+            continue;
+        }
+        let ray = calib.ray((x0 + x1) as f64 / 2.0, y1 as f64 - 0.5);
+        if ray[2] >= 0.0 {
+            continue;
+        }
+        out.push(MoverSeen {
+            x0: x0 as u32,
+            y0: y0 as u32,
+            x1: x1 as u32,
+            y1: y1 as u32,
+            changed: count,
+            bearing_rad: ray[1].atan2(ray[0]),
+        });
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -368,13 +517,75 @@ mod tests {
 
     /// Deterministic noise: a hash of the position, roughly uniform in ±`amp`.
     fn noisy(rgb: &mut [u8], amp: i32) {
+        noisy_salted(rgb, amp, 0);
+    }
+
+    /// [`noisy`] drawn afresh for each `salt` (another frame's noise).
+    fn noisy_salted(rgb: &mut [u8], amp: i32, salt: u64) {
         for (i, v) in rgb.iter_mut().enumerate() {
-            let h = (i as u64)
+            let h = (i as u64 ^ salt.wrapping_mul(0xD1B5_4A32_D192_ED03))
                 .wrapping_mul(0x9E37_79B9_7F4A_7C15)
                 .rotate_left(17);
             let d = (h % (2 * amp as u64 + 1)) as i32 - amp;
             *v = (i32::from(*v) + d).clamp(0, 255) as u8;
         }
+    }
+
+    #[test]
+    fn a_car_moving_past_a_still_camera_is_a_mover_and_a_walker_or_a_lamp_is_not() {
+        let calib = CameraCalib::standard(CameraId::CrossLeft, 192, 144);
+        let (w, h) = (192, 144);
+        let bg = frame(w, h, [96, 98, 100]);
+        assert!(movers(&bg, &bg, &calib).unwrap().is_empty());
+        // A dark car 14 × 5 px below the horizon (row 72), 3 px further right a step later;
+        // a walker 2 × 9 px a pixel on; a lamp above the horizon turning from red to green.
+        let scene = |car_x: usize, walker_x: usize, lamp: [u8; 3]| {
+            let mut f = bg.clone();
+            paint(&mut f, w, (car_x, 80, car_x + 14, 85), |_, _| [30, 32, 36]);
+            paint(&mut f, w, (walker_x, 70, walker_x + 2, 79), |_, _| {
+                [150, 60, 60]
+            });
+            paint(&mut f, w, (150, 20, 156, 26), |_, _| lamp);
+            f
+        };
+        let a = scene(40, 120, [250, 20, 20]);
+        let b = scene(43, 121, [20, 250, 60]);
+        let got = movers(&a, &b, &calib).unwrap();
+        assert_eq!(got.len(), 1, "{got:?}");
+        let m = got[0];
+        // Both edges changed (the car's uniform middle did not): the box spans them.
+        assert_eq!((m.x0, m.y0, m.x1, m.y1), (40, 80, 57, 85));
+        assert_eq!(m.changed, 30);
+        // Its bottom centre (column 48.5) lies atan(47.5 / fx) = 40.6° left of the axis of
+        // a camera turned 60° left (fx = 96 / tan 60°); through the right camera, turned
+        // 60° right, the same pixels lie 19.4° right of straight ahead.
+        let expect = |yaw: f64| yaw + (47.5f64 / (96.0 / 60f64.to_radians().tan())).atan();
+        assert!((m.bearing_rad - expect(60f64.to_radians())).abs() < 1e-9);
+        let right = CameraCalib::standard(CameraId::CrossRight, 192, 144);
+        let r = movers(&a, &b, &right).unwrap();
+        assert!(r.len() == 1 && (r[0].bearing_rad - expect(-60f64.to_radians())).abs() < 1e-9);
+        assert!((r[0].bearing_rad.to_degrees() + 19.4).abs() < 0.1);
+        // With fresh sensor noise in each frame (uniform ±12: σ 6.9 per frame, 9.8 in the
+        // difference) the bar rises above the noise and the car is still the one mover.
+        let (mut na, mut nb) = (a.clone(), b.clone());
+        noisy_salted(&mut na, 12, 1);
+        noisy_salted(&mut nb, 12, 2);
+        let got = movers(&na, &nb, &calib).unwrap();
+        assert_eq!(got.len(), 1, "{got:?}");
+        assert!(got[0].x0 >= 38 && got[0].x1 <= 59 && got[0].y0 >= 78 && got[0].y1 <= 87);
+        let still = movers(
+            &na,
+            &{
+                let mut c = a.clone();
+                noisy_salted(&mut c, 12, 3);
+                c
+            },
+            &calib,
+        )
+        .unwrap();
+        assert!(still.is_empty(), "{still:?}");
+        // Frames of another size are an error, not a guess.
+        assert!(movers(&a, &b[..b.len() - 3], &calib).is_err());
     }
 
     #[test]

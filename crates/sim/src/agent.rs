@@ -35,9 +35,11 @@
 //!
 //! **Stop signs**: a stop-sign decision's stop point (the latest estimate while the sign is
 //! seen) is kept (the sign leaves the cameras' view as the car gets close) until the car has
-//! stood still (< 0.1 m/s) for 1.5 s within 3 m of it, or is more than 1 m past it. The planner stops for any stop sign it sees, also once it has
-//! stopped: after that 1.5 s stop the agent treats stop-sign decisions as "keep lane" for
-//! the next 30 m driven.
+//! stood still (< 0.1 m/s) for 1.5 s within 3 m of it and its looks to the sides (two
+//! cross cameras, rendered only then) have seen no vehicle moving for [`LOOK_QUIET_S`]
+//! ([`Baseline::wants_look`], [`Baseline::look`]), or is more than 1 m past it. The
+//! planner stops for any stop sign it sees, also once it has stopped: after that stop the
+//! agent treats stop-sign decisions as "keep lane" for the next 30 m driven.
 //!
 //! **Junctions** ([`JunctionGap`]): a car within 15 m of the entry to its route's next
 //! junction that is slower than 3 m/s (starting after a stop sign, a red light or a queue),
@@ -64,7 +66,7 @@
 use std::sync::Arc;
 
 use fogline_planner::ReferencePlanner;
-use fogline_planner::detect::ObjectSeen;
+use fogline_planner::detect::{MoverSeen, ObjectSeen};
 use fogline_planner::perceive::{Lamp, LeadSeen, Lost, ObjectKind};
 use fogline_planner::plan::LIGHT_TO_LINE_MAX_M;
 use fogline_types::clip::{CameraInput, Decision, EgoPose, PlannerInput};
@@ -213,6 +215,9 @@ pub struct Baseline {
     hidden_stop: bool,
     /// Seconds since a vehicle was last seen crossing the ego's path ahead.
     cross_quiet_s: f64,
+    /// Seconds the looks to the sides have found no vehicle moving, standing at a stop
+    /// sign's line (see [`Baseline::look`]).
+    look_quiet_s: f64,
     /// The road user on the right kerb over the steps.
     kerb: KerbWatch,
     junction_gap: JunctionGap,
@@ -537,6 +542,15 @@ impl JunctionGap {
 /// side's stop line is about 30 m from a car at its own).
 pub const ONCOMING_REACH_M: f64 = 45.0;
 
+/// Standing at a stop sign's line (seen, or a hidden signal's), the car goes only after its
+/// looks to the sides have found no vehicle moving for this long, s: a car that will reach
+/// the junction within the next five seconds or so is in view and moving now.
+pub const LOOK_QUIET_S: f64 = 1.2;
+
+/// A mover the side looks find within this bearing of straight ahead is the front
+/// camera's concern (the junction-gap check and the car ahead), not cross traffic, degrees.
+pub const LOOK_AHEAD_DEG: f64 = 12.0;
+
 /// The unstick rule and the signal ahead. A car held longer than
 /// [`AgentParams::unstick_after_s`] (a walker who stands at the kerb and never crosses, a
 /// reading that never clears) moves on by the unstick rule — but not through a working
@@ -590,6 +604,7 @@ impl Baseline {
             lost: Vec::new(),
             hidden_stop: false,
             cross_quiet_s: 0.0,
+            look_quiet_s: 0.0,
             kerb: KerbWatch::default(),
             junction_gap: JunctionGap::default(),
             zebra_at_m: None,
@@ -635,6 +650,37 @@ impl Baseline {
             self.red_stop_at_m = None;
         }
         self.hidden_signal = hidden;
+    }
+
+    /// Whether the agent wants to look to the sides now: it stands at a stop sign's line
+    /// (seen, or the all-way stop of a hidden signal), where it must see the cross street
+    /// before it goes. The caller then gives it what its side cameras see ([`Self::look`]).
+    pub fn wants_look(&self, speed_mps: f64, odometer_m: f64) -> bool {
+        self.driver.is_none()
+            && speed_mps < 0.1
+            && self.sign_stop_at_m.is_some_and(|m| odometer_m > m - 3.0)
+    }
+
+    /// What the side cameras show at a look, `dt_s` after the previous one (the time the
+    /// two frames span): the vehicles that moved between the two frames
+    /// ([`fogline_planner::detect::movers`], both cameras), or `None` for the first look
+    /// (nothing to compare yet). A mover more than [`LOOK_AHEAD_DEG`] to a side is cross
+    /// traffic: the stop at the line ends only after [`LOOK_QUIET_S`] of looks without one.
+    pub fn look(&mut self, movers: Option<&[MoverSeen]>, dt_s: f64) {
+        let Some(movers) = movers else {
+            return;
+        };
+        let cross = movers
+            .iter()
+            .any(|m| m.bearing_rad.abs() > LOOK_AHEAD_DEG.to_radians());
+        if cross {
+            if self.look_quiet_s > 0.0 {
+                log::debug!("cross traffic in the side looks: {movers:?}");
+            }
+            self.look_quiet_s = 0.0;
+        } else {
+            self.look_quiet_s += dt_s;
+        }
     }
 
     /// Tells the agent which regions of its latest frames are lost (the override recognised
@@ -833,10 +879,24 @@ impl Baseline {
             // The lamp or sign sits in a lost region: its reading is no evidence. An unknown
             // signal is an all-way stop at the line.
             self.red_stop_at_m = None;
-            let line = match decision {
-                Decision::StopForRedLight | Decision::StopForSign => plan.stop_at,
-                _ => perc.stop_line.map(|l| l - EGO_FRONT_M - 0.5),
-            };
+            // The stop line it sees, else where a line would be before the approach's
+            // crossing it sees (5 m short of it: the same point), else the planner's stop
+            // for the lamp or sign (traced: a junction whose line the car did not see, a red
+            // read from an unmasked far head one step and not the next, and the car never
+            // stopped). A point more than a metre behind the car is passed.
+            let stop_decision =
+                matches!(decision, Decision::StopForRedLight | Decision::StopForSign);
+            let line = perc
+                .stop_line
+                .map(|l| l - EGO_FRONT_M - 0.5)
+                .or(perc
+                    .zebra
+                    // The approach's own crossing, before the junction the route enters
+                    // (not the far one, seen from inside the junction).
+                    .filter(|&z| input.junction.is_some_and(|j| z <= j.entry_m + 1.0))
+                    .map(|z| z - CROSSING_GAP_M - EGO_FRONT_M))
+                .or(plan.stop_at.filter(|_| stop_decision))
+                .filter(|&a| a > -1.0);
             if let Some(at) = line.filter(|&a| a < HIDDEN_SIGNAL_REACH_M) {
                 decision = Decision::StopForSign;
                 planned_stop = Some(at);
@@ -1105,7 +1165,8 @@ impl Baseline {
             let at_sign = self.sign_stop_at_m.is_some_and(|m| odometer_m > m - 3.0);
             if at_sign {
                 self.sign_stop_s += dt;
-                let clear = !self.hidden_stop || self.cross_quiet_s >= HIDDEN_SIGNAL_QUIET_S;
+                let clear = (!self.hidden_stop || self.cross_quiet_s >= HIDDEN_SIGNAL_QUIET_S)
+                    && self.look_quiet_s >= LOOK_QUIET_S - 1e-9;
                 if self.sign_stop_s >= 1.5 && clear {
                     self.hidden_stop = false;
                     self.sign_free_until_m = odometer_m + p.sign_memory_m;
@@ -1116,6 +1177,7 @@ impl Baseline {
         } else {
             self.stopped_s = 0.0;
             self.sign_stop_s = 0.0;
+            self.look_quiet_s = 0.0;
         }
         if self.unstick_left_s > 0.0 {
             self.unstick_left_s -= dt;
@@ -2046,6 +2108,62 @@ mod tests {
         // A new reading far from the last, or after a gap of steps, starts a new track.
         m.update(Some(&vehicle(60.0, 0.0)), 10.0, 10, 0.4 * (10) as f64, 1.0);
         assert!(!m.seen_driving());
+    }
+
+    #[test]
+    fn at_a_stop_sign_the_car_goes_only_once_its_side_looks_see_no_vehicle_moving() {
+        let mover = |deg: f64| MoverSeen {
+            x0: 10,
+            y0: 80,
+            x1: 30,
+            y1: 86,
+            changed: 40,
+            bearing_rad: deg.to_radians(),
+        };
+        let route = DenseRoute::new((0..50).map(|i| [i as f64, 0.0]).collect()).unwrap();
+        let bike = BicycleParams::default();
+        let standing = VehicleState::default();
+        // Standing at the line (0.5 m short of the stop point); planning steps 0.4 s apart,
+        // control steps 0.05 s; cross traffic passing in the left look for 4 s.
+        let run = |cross_until_s: f64, ahead_only: bool| {
+            let mut a = Baseline::new(AgentParams::default());
+            a.sign_stop_at_m = Some(0.5);
+            for step in 0..200 {
+                let t = step as f64 * 0.4;
+                assert!(a.wants_look(0.0, 0.0), "at {t} s");
+                let seen = if t < cross_until_s {
+                    if ahead_only {
+                        vec![mover(8.0), mover(-11.0)]
+                    } else {
+                        vec![mover(80.0), mover(-40.0)]
+                    }
+                } else {
+                    Vec::new()
+                };
+                a.look((step > 0).then_some(seen.as_slice()), 0.4);
+                for _ in 0..8 {
+                    a.control(&standing, &route, 0, 0.05, 0.0, &bike);
+                }
+                if a.sign_stop_at_m.is_none() {
+                    return Some(t);
+                }
+            }
+            None
+        };
+        // Quiet looks: the stop ends in the step from 1.2 s, once the car has stood 1.5 s
+        // at the line and three comparisons (from the second look on) make 1.2 s of quiet.
+        let quiet = run(0.0, false).unwrap();
+        assert!((quiet - 1.2).abs() < 1e-9, "{quiet}");
+        // Cross traffic until 3.6 s: the stop lasts until three quiet looks after it.
+        let busy = run(4.0, false).unwrap();
+        assert!((busy - 4.8).abs() < 1e-9, "{busy}");
+        // A mover straight ahead (within 12°) is the front camera's business, not the look's.
+        assert_eq!(run(4.0, true), Some(quiet));
+        // A car that moves no longer looks: it is not at the line.
+        let mut a = Baseline::new(AgentParams::default());
+        a.sign_stop_at_m = Some(0.5);
+        assert!(!a.wants_look(2.0, 0.0));
+        assert!(!a.wants_look(0.0, -5.0));
     }
 
     #[test]

@@ -5,6 +5,7 @@
 mod bad_input;
 mod closed_loop;
 mod scoring;
+mod side_look;
 mod sign_reader;
 
 use fogline_sim::config::{BackendSetup, Config, RcoSetup};

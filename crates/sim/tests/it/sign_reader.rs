@@ -26,10 +26,10 @@ fn cameras() -> (CameraCalib, CameraCalib) {
 }
 
 /// A town with its static parts and no traffic.
-struct Place {
-    town: Town,
-    cache: PartsCache,
-    traffic: Traffic,
+pub(crate) struct Place {
+    pub(crate) town: Town,
+    pub(crate) cache: PartsCache,
+    pub(crate) traffic: Traffic,
 }
 
 fn place(seed: u64, index: u64, vehicles: usize) -> Place {
@@ -37,7 +37,17 @@ fn place(seed: u64, index: u64, vehicles: usize) -> Place {
 }
 
 /// A town, traffic around a 600 m route through it, and the route.
-fn place_route(seed: u64, index: u64, vehicles: usize) -> (Place, route::Route) {
+pub(crate) fn place_route(seed: u64, index: u64, vehicles: usize) -> (Place, route::Route) {
+    place_with(seed, index, vehicles, 0)
+}
+
+/// [`place_route`] with `pedestrians` walkers too.
+pub(crate) fn place_with(
+    seed: u64,
+    index: u64,
+    vehicles: usize,
+    pedestrians: usize,
+) -> (Place, route::Route) {
     let town = Town::generate(TownParams::default(), seed, index);
     let mut d = Draw::new(seed, &[index, 0x516]);
     let r = route::generate(&town, 600.0, 0.0, &mut d).unwrap();
@@ -46,7 +56,7 @@ fn place_route(seed: u64, index: u64, vehicles: usize) -> (Place, route::Route) 
         &r,
         TrafficParams {
             vehicles,
-            pedestrians: 0,
+            pedestrians,
             cyclist_share: 0.0,
             events_per_km: 0.0,
         },
@@ -140,7 +150,7 @@ fn read_at(
 
 /// The ego in the approach lane of `sign`, its cameras `dist_m` short of the sign (along
 /// the lane).
-fn approach(p: &Place, sign: usize, dist_m: f64) -> VehicleState {
+pub(crate) fn approach(p: &Place, sign: usize, dist_m: f64) -> VehicleState {
     let s = &p.town.signs[sign];
     let u: P2 = DIRS[s.din];
     let r = right_of(u);
@@ -158,7 +168,7 @@ fn approach(p: &Place, sign: usize, dist_m: f64) -> VehicleState {
 
 /// The signs of a town whose approach is straight road for `reach_m` before the sign (no
 /// junction of its own in between).
-fn signs_with_room(p: &Place, reach_m: f64) -> Vec<usize> {
+pub(crate) fn signs_with_room(p: &Place, reach_m: f64) -> Vec<usize> {
     (0..p.town.signs.len())
         .filter(|&k| {
             let s = &p.town.signs[k];
@@ -174,7 +184,7 @@ fn signs_with_room(p: &Place, reach_m: f64) -> Vec<usize> {
         .collect()
 }
 
-const LIGHTS: [(Weather, Daylight); 8] = [
+pub(crate) const LIGHTS: [(Weather, Daylight); 8] = [
     (Weather::Cloudy, Daylight::Noon),
     (Weather::Wet, Daylight::Morning),
     (Weather::SoftRain, Daylight::Dawn),
