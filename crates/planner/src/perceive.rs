@@ -237,22 +237,35 @@ impl<'a> Eyes<'a> {
         w.project(p).map(|q| (w, q))
     }
 
-    /// Like [`Eyes::ground`], averaged with the same ground point in the earlier frames
-    /// (ego motion from the history): for the static paint on the road, whose pixels move
-    /// between frames but whose colour does not. Each earlier frame adds independent noise
-    /// samples, so four frames halve the noise of the reading.
+    /// [`Eyes::ground`] and the view that read it.
     #[inline]
-    fn ground_static(&self, x: f64, y: f64, lat: f64, dep: f64) -> Option<Sample> {
+    fn ground_read(&self, x: f64, y: f64, lat: f64, dep: f64) -> Option<(&View<'a>, Sample)> {
         let p = [x, y, 0.0];
         let (view, proj) = self.view_proj(p)?;
-        let first = view.around_at(p, proj, lat, dep)?;
+        view.around_at(p, proj, lat, dep).map(|s| (view, s))
+    }
+
+    /// Reading `first` of ground point `p` in `view` ([`Eyes::ground_read`]), averaged with
+    /// the same ground point in that camera's earlier frames (ego motion from the history):
+    /// for the static paint on the road, whose pixels move between frames but whose colour
+    /// does not. Each earlier frame adds independent noise samples, so four frames halve
+    /// the noise of the reading.
+    #[inline]
+    fn pooled_over_past(
+        &self,
+        view: &View<'a>,
+        p: [f64; 3],
+        first: Sample,
+        lat: f64,
+        dep: f64,
+    ) -> Sample {
         let past = if view.calib.id == CameraId::FrontTele {
             &self.past_tele
         } else {
             &self.past_wide
         };
         if past.is_empty() {
-            return Some(first);
+            return first;
         }
         let (mut acc, mut n) = (first.c, 1.0f32);
         for (_, v, pose) in past {
@@ -263,10 +276,10 @@ impl<'a> Eyes<'a> {
                 n += 1.0;
             }
         }
-        Some(Sample {
+        Sample {
             c: [acc[0] / n, acc[1] / n, acc[2] / n],
             s: first.s / n.sqrt(),
-        })
+        }
     }
 
     /// A pooled reading of ground point `(x, y)` over about `lat × dep` metres.
@@ -834,11 +847,35 @@ struct Markings {
     contrasts: Vec<f32>,
 }
 
+/// The distances of the rows [`find_markings`] reads, m: every 0.5 m from 5 m, every metre
+/// from 15 m to 34 m.
+fn marking_rows() -> impl Iterator<Item = f64> {
+    std::iter::successors(Some(5.0f64), |&x| {
+        Some(x + if x < 15.0 { 0.5 } else { 1.0 })
+    })
+    .take_while(|&x| x <= 34.0)
+}
+
 /// Looks for the markings in windows either side of `centre(x)`, the expected lane centre.
 fn find_markings(eyes: &Eyes<'_>, road: &RoadModel, centre: &dyn Fn(f64) -> f64) -> Markings {
+    find_markings_reaching(eyes, road, centre, 0).unwrap_or_default()
+}
+
+/// [`find_markings`], given up (`None`) as soon as it can no longer find `at_least` marking
+/// points (each row adds at most two): for a search that only wants a reading finding that
+/// many, the rest of the scan cannot change its outcome.
+fn find_markings_reaching(
+    eyes: &Eyes<'_>,
+    road: &RoadModel,
+    centre: &dyn Fn(f64) -> f64,
+    at_least: usize,
+) -> Option<Markings> {
     let mut m = Markings::default();
-    let mut x = 5.0;
-    while x <= 34.0 {
+    let rows_total = marking_rows().count();
+    for x in marking_rows() {
+        if m.pts.len() + 2 * (rows_total - m.rows) < at_least {
+            return None;
+        }
         m.rows += 1;
         let yc = centre(x);
         let refs = road.refs(x);
@@ -853,16 +890,18 @@ fn find_markings(eyes: &Eyes<'_>, road: &RoadModel, centre: &dyn Fn(f64) -> f64)
             while y <= hi {
                 // Pooled over the earlier frames too, unless the latest frame alone shows
                 // plain asphalt (most of the window).
-                let first = eyes.ground(x, yc + y, 0.06, dep);
-                let plain_asphalt = first.is_some_and(|s| {
+                let read = eyes.ground_read(x, yc + y, 0.06, dep);
+                let plain_asphalt = read.is_some_and(|(_, s)| {
                     lum(s.c) - lum(refs.road) < 20.0 * refs.gain
                         && s.c[0] - s.c[2] < 30.0 * refs.gain
                 });
-                let pooled = if plain_asphalt {
-                    first
-                } else {
-                    eyes.ground_static(x, yc + y, 0.06, dep)
-                };
+                let pooled = read.map(|(view, first)| {
+                    if plain_asphalt {
+                        first
+                    } else {
+                        eyes.pooled_over_past(view, [x, yc + y, 0.0], first, 0.06, dep)
+                    }
+                });
                 if let Some(s) = pooled {
                     let yl = is_yellow_paint(s, &refs);
                     if yl || is_white_paint(s, &refs) {
@@ -902,9 +941,8 @@ fn find_markings(eyes: &Eyes<'_>, road: &RoadModel, centre: &dyn Fn(f64) -> f64)
                 }
             }
         }
-        x += if x < 15.0 { 0.5 } else { 1.0 };
     }
-    m
+    Some(m)
 }
 
 /// The least-squares fit of `y = a_side + b·x + c·x²` to marking points: `(a_right,
@@ -990,12 +1028,22 @@ fn fit_lane(eyes: &Eyes<'_>, kappa_prior: f64, road: &RoadModel, sigma: f32) -> 
         // the reading along the car's axis finds few markings. Where fewer than three rows
         // in four found them on both sides, look along lanes turned by the candidate
         // headings and take the reading that finds the most.
+        // The reading taken is the last of those finding the most points, and only when
+        // that is more than half as many again as along the axis: a candidate that can no
+        // longer reach that many, nor the best one before it, is given up as it scans.
         if 4 * m.pts.len() < 6 * m.rows {
-            let best = HEADING_CANDIDATES_RAD
-                .iter()
-                .map(|&h| find_markings(eyes, road, &|x| h * x + 0.5 * kappa_prior * x * x))
-                .max_by_key(|c| c.pts.len());
-            if let Some(best) = best.filter(|c| 2 * c.pts.len() > 3 * m.pts.len())
+            let need = 3 * m.pts.len() / 2 + 1;
+            let mut best: Option<Markings> = None;
+            for &h in &HEADING_CANDIDATES_RAD {
+                let floor = best.as_ref().map_or(need, |b| b.pts.len().max(need));
+                let centre = |x: f64| h * x + 0.5 * kappa_prior * x * x;
+                if let Some(c) = find_markings_reaching(eyes, road, &centre, floor)
+                    && c.pts.len() >= floor
+                {
+                    best = Some(c);
+                }
+            }
+            if let Some(best) = best
                 && let Some(lane) = fit_lane_at_angle(eyes, road, &best)
             {
                 return Some(lane);
@@ -3008,6 +3056,82 @@ mod tests {
                     mask(rgb, c.width as usize, b);
                 }
                 assert_eq!(read(&w, &t), None, "walker masked {dist_m} m off");
+            }
+        }
+    }
+
+    /// The marking search along candidate headings gives up a reading only when it can no
+    /// longer find as many points as asked: what it keeps is the whole reading.
+    mod marking_search {
+        use super::super::*;
+        use super::stop_sign_reader::{cams, frame, with_eyes};
+        use fogline_types::clip::CameraCalib;
+
+        #[test]
+        fn a_marking_reading_is_given_up_only_when_it_can_no_longer_reach_the_count_asked() {
+            let (wide, tele) = cams();
+            // Lanes at several angles to the car, with both markings, with the left one
+            // only, and with none; the search looks along the car's axis and along turned
+            // lanes, as `fit_lane` does.
+            for (heading, sides) in [
+                (0.0, [true, true]),
+                (0.06, [true, true]),
+                (-0.09, [true, false]),
+                (0.03, [true, false]),
+                (0.0, [false, false]),
+            ] {
+                let paint = |c: &CameraCalib| {
+                    let c = *c;
+                    move |ray: [f64; 3]| -> Option<[f32; 3]> {
+                        if ray[2] >= -1e-9 {
+                            return None;
+                        }
+                        let t = -c.z_m / ray[2];
+                        let (x, y) = (c.x_m + t * ray[0], c.y_m + t * ray[1]);
+                        let lane = y - heading * x;
+                        let on = |side: f64| (lane - side).abs() <= 0.07;
+                        ((sides[0] && on(1.75)) || (sides[1] && on(-1.75)))
+                            .then_some([232.0, 232.0, 226.0])
+                    }
+                };
+                let w = frame(&wide, &paint(&wide), 1.0, 1.0);
+                let t = frame(&tele, &paint(&tele), 1.0, 1.0);
+                with_eyes(&w, &t, |eyes| {
+                    let axis = |x: f64| 0.0 * x;
+                    let road = road_model(eyes, &axis, 1.0);
+                    for h in [0.0, -0.1, -0.05, 0.05, 0.1] {
+                        let centre = move |x: f64| h * x;
+                        let whole = find_markings(eyes, &road, &centre);
+                        let found = whole.pts.len();
+                        assert_eq!(whole.rows, marking_rows().count());
+                        for at_least in [0, 1, found / 2, found, found + 1, 2 * whole.rows] {
+                            let got = find_markings_reaching(eyes, &road, &centre, at_least);
+                            match got {
+                                Some(m) => assert_eq!(
+                                    (m.pts, m.rows, m.left_hits),
+                                    (whole.pts.clone(), whole.rows, whole.left_hits),
+                                    "lane {heading} sides {sides:?}, along {h}, {at_least}"
+                                ),
+                                None => assert!(
+                                    found < at_least,
+                                    "given up at {at_least} with {found} to find \
+                                     (lane {heading} sides {sides:?}, along {h})"
+                                ),
+                            }
+                        }
+                        // Asked for every row's two points, a reading that misses some
+                        // before its last row is given up.
+                        if found + 2 < 2 * whole.rows {
+                            assert!(
+                                find_markings_reaching(eyes, &road, &centre, 2 * whole.rows)
+                                    .is_none()
+                            );
+                        }
+                        if heading == h && sides[0] {
+                            assert!(found >= whole.rows / 2, "{found} on lane {heading}");
+                        }
+                    }
+                });
             }
         }
     }

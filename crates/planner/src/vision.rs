@@ -35,6 +35,9 @@ pub struct View<'a> {
     /// The camera's axes (`CameraCalib::axes`), computed once: projection is the inner loop
     /// of every reading.
     axes: [[f64; 3]; 3],
+    /// Whether the noise is weak enough that every pooled reading is the least patch,
+    /// 2 × 2 pixels, whatever its limits ([`pool_size`] at σ̂ ≤ 2·[`TARGET_NOISE`]).
+    least_patch: bool,
 }
 
 thread_local! {
@@ -142,6 +145,7 @@ impl<'a> View<'a> {
             white,
             censor: fogline_monitor::Censoring::new(f64::from(sigma)),
             axes: calib.axes(),
+            least_patch: f64::from((sigma / TARGET_NOISE).powi(2)) <= 4.0,
         }
     }
 
@@ -157,6 +161,7 @@ impl<'a> View<'a> {
             white: self.white,
             censor: self.censor.clone(),
             axes: self.axes,
+            least_patch: self.least_patch,
         }
     }
 
@@ -329,6 +334,10 @@ impl<'a> View<'a> {
         lat_m: f64,
         dep_m: f64,
     ) -> Option<Sample> {
+        if self.least_patch {
+            // `pool_size` gives 2 × 2 whatever the limits when σ̂ needs no more.
+            return self.patch(u, v, 2, 2);
+        }
         let x = (p[0] - self.calib.x_m).max(0.5);
         let px_per_m = self.calib.fx / range.max(0.5);
         let kw_max = (lat_m * px_per_m).max(2.0);
@@ -781,6 +790,54 @@ mod tests {
 
     fn at(c: Rgb) -> Sample {
         Sample { c, s: 0.0 }
+    }
+
+    /// A view whose noise needs no pooling reads every point through the least patch,
+    /// without working out its limits: the same patch `pool_size` gives for any limits.
+    #[test]
+    fn weak_noise_reads_the_least_patch_whatever_the_limits() {
+        let limits = [0.0, 0.4, 1.0, 2.0, 2.6, 7.5, 40.0, f64::NAN, f64::INFINITY];
+        for sigma in [0.0f32, 1.0, 3.0, 5.5, 5.999, 6.0] {
+            for kw in limits {
+                for kh in limits {
+                    assert_eq!(pool_size(sigma, kw, kh), (2, 2), "σ {sigma} {kw} × {kh}");
+                }
+            }
+        }
+        // Beyond it the limits matter, so the view does work them out.
+        assert_ne!(pool_size(9.0, 40.0, 40.0), (2, 2));
+        let mut calib = CameraCalib::standard(fogline_types::clip::CameraId::FrontWide, 64, 48);
+        calib.fx = 32.0;
+        calib.fy = 32.0;
+        let rgb: Vec<u8> = (0..64 * 48 * 3).map(|i| (i * 7919 % 253) as u8).collect();
+        for (sigma, least) in [(0.0, true), (6.0, true), (6.01, false), (20.0, false)] {
+            let view = View::plain(&calib, &rgb, Some(sigma)).pooled();
+            assert_eq!(view.least_patch, least, "σ {sigma}");
+            for p in [
+                [3.0, 0.4, 0.0],
+                [9.0, -1.0, 0.0],
+                [5.0, 0.2, 1.2],
+                [30.0, 2.0, 0.0],
+            ] {
+                let Some(proj) = view.project(p) else {
+                    continue;
+                };
+                for (lat, dep) in [(0.06, 1.0), (0.25, 0.5), (1.5, 3.0)] {
+                    let got = view.around_at(p, proj, lat, dep);
+                    // What the limits give, worked out as `around_at` does without the
+                    // shortcut.
+                    let x = (p[0] - calib.x_m).max(0.5);
+                    let kw_max = (lat * calib.fx / proj.2.max(0.5)).max(2.0);
+                    let rows = if p[2] < 0.05 {
+                        calib.fy * calib.z_m / (x * x)
+                    } else {
+                        calib.fy / x
+                    };
+                    let (kw, kh) = pool_size(sigma, kw_max, (dep * rows).max(2.0));
+                    assert_eq!(got, view.patch(proj.0, proj.1, kw, kh), "σ {sigma} {p:?}");
+                }
+            }
+        }
     }
 
     /// Pixels read from rendered frames: a signal head in mid rain at sunset (white level
