@@ -9,8 +9,10 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use fogline_campaign::config::PlannerConfig;
 use fogline_campaign::planner_from;
+use fogline_sim::compare::{Comparison, compare, read_records};
 use fogline_sim::experiment::{ExperimentParams, Results, run_experiment_with};
 use fogline_sim::output::{Written, markdown, write_all};
+use fogline_sim::sense::DeficitKind;
 use fogline_types::planner::Planner;
 
 /// The routes `spec` names, for `fogline sim run --routes`: comma-separated route indices
@@ -48,6 +50,46 @@ pub fn parse_routes(spec: &str) -> Result<Vec<usize>> {
         }
     }
     Ok(out)
+}
+
+/// The deficits `names` lists, for `fogline sim run --deficits`: `traffic_light`,
+/// `stop_sign`, `pedestrian`, `bicycle`, each once in the order given; `none` adds none
+/// (the no-deficit configuration runs either way).
+///
+/// ```
+/// use fogline_sim::sense::DeficitKind;
+/// let d = fogline_api::sim::parse_deficits(&["bicycle", "none", "bicycle"]).unwrap();
+/// assert_eq!(d, vec![DeficitKind::Bicycle]);
+/// assert!(fogline_api::sim::parse_deficits(&["fog"]).is_err());
+/// ```
+pub fn parse_deficits<S: AsRef<str>>(names: &[S]) -> Result<Vec<DeficitKind>> {
+    let mut out = Vec::new();
+    for d in names.iter().map(AsRef::as_ref).filter(|d| *d != "none") {
+        let k = DeficitKind::parse(d).with_context(|| {
+            format!(
+                "--deficits: unknown deficit {d:?} (traffic_light, stop_sign, pedestrian, bicycle, or none)"
+            )
+        })?;
+        if !out.contains(&k) {
+            out.push(k);
+        }
+    }
+    Ok(out)
+}
+
+/// What `fogline sim compare` prints: the runs of two `fogline sim run --out` directories
+/// (or their `records.jsonl`) compared configuration by configuration
+/// ([`fogline_sim::compare`]); an error when no run of the first has a match in the second.
+pub fn compare_runs(before: &Path, after: &Path) -> Result<Comparison> {
+    let c = compare(&read_records(before)?, &read_records(after)?);
+    if c.configs.is_empty() {
+        anyhow::bail!(
+            "no run of {} has a match (same configuration, seed and route) in {}",
+            before.display(),
+            after.display()
+        );
+    }
+    Ok(c)
 }
 
 /// The planner under test that `spec` names, for `fogline sim run --planner`: `builtin`

@@ -11,7 +11,6 @@ use clap::{Args, Subcommand};
 use fogline_sim::config::{BackendSetup, ConfigSet, configs};
 use fogline_sim::experiment::ExperimentParams;
 use fogline_sim::run::RunParams;
-use fogline_sim::sense::DeficitKind;
 use fogline_sim::suite::SuiteParams;
 
 use crate::backend_args::{BackendArg, OpenAiArgs};
@@ -31,6 +30,28 @@ enum SimCommand {
         after_help = "Examples:\n  fogline sim run --quick --out sim-quick\n  fogline sim run --out sim-results\n  fogline sim run --configs main,ablation,sweep --seeds 3 --out sim-all\n  fogline sim run --quick --backend openai --url http://127.0.0.1:8000 --model Qwen/Qwen2-VL-2B-Instruct"
     )]
     Run(Box<RunArgs>),
+    /// Compare two sets of runs of the same suite, configuration by configuration: runs
+    /// paired by seed and route, the mean change of the driving score with its 95 %
+    /// bootstrap interval, collisions per km, and how many runs are identical.
+    #[command(
+        after_help = "Examples:\n  fogline sim compare sim-before/ sim-after/\n  fogline sim compare sim-before/records.jsonl sim-after/records.jsonl --json\n  fogline sim compare sim-before/ sim-after/ --require-identical   # exit 1 unless every run is the same"
+    )]
+    Compare(CompareArgs),
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    /// The runs before: a `fogline sim run --out` directory or its `records.jsonl`.
+    before: PathBuf,
+    /// The runs after, likewise.
+    after: PathBuf,
+    /// Print the comparison as JSON on stdout instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Exit with status 1 unless both sets hold the same runs and every pair is identical
+    /// (wall-clock times aside): for a change that must not alter results.
+    #[arg(long)]
+    require_identical: bool,
 }
 
 #[derive(Args)]
@@ -110,7 +131,23 @@ struct RunArgs {
 pub fn sim(a: SimArgs) -> Result<ExitCode> {
     match a.what {
         SimCommand::Run(r) => run(*r),
+        SimCommand::Compare(c) => compare(&c),
     }
+}
+
+fn compare(a: &CompareArgs) -> Result<ExitCode> {
+    let c = fogline_api::sim::compare_runs(&a.before, &a.after)?;
+    let text = if a.json {
+        serde_json::to_string_pretty(&c)? + "\n"
+    } else {
+        c.markdown()
+    };
+    std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes())?;
+    if a.require_identical && !c.all_identical() {
+        eprintln!("error: the runs differ (--require-identical)");
+        return Ok(ExitCode::from(1));
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 fn run(a: RunArgs) -> Result<ExitCode> {
@@ -127,20 +164,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
             })?,
         );
     }
-    let mut deficits = Vec::new();
-    for d in &a.deficits {
-        if d == "none" {
-            continue; // the no-deficit configuration only
-        }
-        let k = DeficitKind::parse(d).with_context(|| {
-            format!(
-                "--deficits: unknown deficit {d:?} (traffic_light, stop_sign, pedestrian, bicycle, or none)"
-            )
-        })?;
-        if !deficits.contains(&k) {
-            deficits.push(k);
-        }
-    }
+    let deficits = fogline_api::sim::parse_deficits(&a.deficits)?;
     if a.seeds == 0 {
         bail!("--seeds must be at least 1");
     }

@@ -17,6 +17,8 @@
 //! - [`agent`]: the baseline (reference planner + PID + pure pursuit + unstick rule).
 //! - [`run`]: one route under one configuration, the closed loop at 20 Hz.
 //! - [`config`], [`experiment`], [`output`]: configurations, parallel runs, tables, files.
+//! - [`compare`]: two sets of runs compared configuration by configuration (`fogline sim
+//!   compare`).
 //!
 //! ```
 //! use fogline_sim::score::{Event, EventKind, RouteScore, ScoringParams};
@@ -56,6 +58,7 @@
 //! ```
 
 pub mod agent;
+pub mod compare;
 pub mod config;
 pub mod experiment;
 pub mod geom;
@@ -87,6 +90,25 @@ pub enum SimError {
     /// The RCO controller cannot be set up.
     #[error("rco: {0}")]
     Rco(String),
+    /// Reading a file failed.
+    #[error("cannot read {path}")]
+    Read {
+        /// The file.
+        path: String,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A records file (`records.jsonl`) has a line that is not a run record.
+    #[error("records file {file}, line {line}: {message}")]
+    Records {
+        /// The file.
+        file: String,
+        /// The line, from 1.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
     /// Writing results failed.
     #[error("cannot write {path}")]
     Io {

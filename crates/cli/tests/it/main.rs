@@ -17,6 +17,7 @@ mod rco_cmd;
 mod reference_planner;
 mod report_cmd;
 mod serve_load;
+mod sim_cmd;
 mod tls_cmd;
 #[path = "../../../remote/tests/it/tls_support.rs"]
 mod tls_support;
