@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::SimError;
 use crate::experiment::{BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, paired_bootstrap};
 use crate::run::RouteRecord;
-use crate::score::infractions_per_km;
+use crate::score::{collisions_per_km, infractions_per_km};
 
 /// One configuration's runs, before against after.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -156,13 +156,7 @@ pub fn compare(before: &[RouteRecord], after: &[RouteRecord]) -> Comparison {
                     (r.events.as_slice(), r.score.route_completion, r.length_m)
                 })
                 .collect();
-            infractions_per_km(&routes)
-                .iter()
-                .filter(|(k, _)| k.is_collision())
-                .map(|(_, v)| v)
-                // An empty sum is −0.0; + 0.0 makes it 0.
-                .sum::<f64>()
-                + 0.0
+            collisions_per_km(&infractions_per_km(&routes))
         };
         configs.push(ConfigChange {
             config: name.to_string(),

@@ -564,13 +564,7 @@ impl Summary {
             };
             let collisions = |name: &str| {
                 configs.iter().find(|c| c.config == name).map_or(0.0, |c| {
-                    c.infractions_per_km
-                        .iter()
-                        .filter(|(e, _)| e.is_collision())
-                        .map(|(_, v)| v)
-                        // An empty sum is −0.0; + 0.0 makes it 0.
-                        .sum::<f64>()
-                        + 0.0
+                    crate::score::collisions_per_km(&c.infractions_per_km)
                 })
             };
             paired.push(PairedDiff {

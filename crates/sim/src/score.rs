@@ -307,6 +307,18 @@ pub fn infractions_per_km(
     counts.into_iter().map(|(k, n)| (k, n / km)).collect()
 }
 
+/// Collisions (vehicles, pedestrians, layout) per km: the sum of those kinds in
+/// `per_km` ([`infractions_per_km`]'s result), 0 when there are none.
+pub fn collisions_per_km(per_km: &BTreeMap<EventKind, f64>) -> f64 {
+    per_km
+        .iter()
+        .filter(|(k, _)| k.is_collision())
+        .map(|(_, v)| v)
+        // An empty sum is −0.0; + 0.0 makes it 0.
+        .sum::<f64>()
+        + 0.0
+}
+
 // ---------------------------------------------------------------------------------------
 // The dense route and route completion.
 
