@@ -182,7 +182,7 @@ fn make(job: &DemoJob, dir: &Path) -> Result<Made> {
         let sim_dir = dir.join("closed-loop");
         let t2 = Instant::now();
         log::info!(
-            "demo: the quick closed loop (2 towns x 2 routes; no deficit, each deficit with and without RCO)"
+            "demo: the quick closed loop (2 towns x 2 routes; no deficit, each deficit with and without RCO; condition ramps with and without the guard)"
         );
         let results = quick_closed_loop(job.seed, &sim_dir)?;
         Some((results, sim_dir, t2.elapsed().as_secs_f64()))
@@ -232,13 +232,18 @@ impl DemoOutcome {
 }
 
 /// The quick closed loop: the quick suite (2 towns × 2 routes), every main configuration (no
-/// deficit; each deficit with and without RCO, rules backend), seed `seed`, all cores; the
-/// outputs written to `out`.
+/// deficit; each deficit with and without RCO, rules backend) and the condition ramps (no
+/// guard, the monitor-driven guard, the oracle hand-over, the override always on; the
+/// reference planner's envelope), seed `seed`, all cores; the outputs written to `out`.
 pub fn quick_closed_loop(seed: u64, out: &Path) -> Result<Results> {
     let params = ExperimentParams {
         suite: SuiteParams::quick(),
         seeds: vec![seed],
-        configs: configs(&[ConfigSet::Main], &DeficitKind::ALL, &BackendSetup::Rules),
+        configs: configs(
+            &[ConfigSet::Main, ConfigSet::Ramps],
+            &DeficitKind::ALL,
+            &BackendSetup::Rules,
+        ),
         run: RunParams::default(),
         system_time_limit_s: 1800.0,
         llm_latency_ms: Some(1000.0),

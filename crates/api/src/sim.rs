@@ -10,9 +10,12 @@ use anyhow::{Context, Result};
 use fogline_campaign::config::PlannerConfig;
 use fogline_campaign::planner_from;
 use fogline_sim::compare::{Comparison, compare, read_records};
+use fogline_sim::config::{BackendSetup, Config, ConfigSet, configs};
 use fogline_sim::experiment::{ExperimentParams, Results, run_experiment_with};
 use fogline_sim::output::{Written, markdown, write_all};
+use fogline_sim::ramp::RAMP_SCENARIOS;
 use fogline_sim::sense::DeficitKind;
+use fogline_types::odd::OddSpec;
 use fogline_types::planner::Planner;
 
 /// The routes `spec` names, for `fogline sim run --routes`: comma-separated route indices
@@ -73,6 +76,57 @@ pub fn parse_deficits<S: AsRef<str>>(names: &[S]) -> Result<Vec<DeficitKind>> {
         if !out.contains(&k) {
             out.push(k);
         }
+    }
+    Ok(out)
+}
+
+/// The configurations of `fogline sim run`: the sets `sets` names (`main`, `ablation`,
+/// `sweep`, `ramps`), the deficits `deficits` names ([`parse_deficits`]), the override's
+/// `backend`; the ramps' guard and oracle judge by the envelope in `odd` (an `odd.json`),
+/// else by the reference planner's ([`fogline_sim::ramp::reference_odd`]).
+///
+/// ```
+/// use fogline_sim::config::BackendSetup;
+/// let c = fogline_api::sim::experiment_configs(&["ramps"], &["none"], &BackendSetup::Rules, None).unwrap();
+/// let names: Vec<&str> = c.iter().map(|c| c.name.as_str()).collect();
+/// assert_eq!(names, ["ramps/no_guard", "ramps/guard", "ramps/oracle", "ramps/rco"]);
+/// assert!(fogline_api::sim::experiment_configs(&["ramp"], &["none"], &BackendSetup::Rules, None).is_err());
+/// ```
+pub fn experiment_configs<S: AsRef<str>, D: AsRef<str>>(
+    sets: &[S],
+    deficits: &[D],
+    backend: &BackendSetup,
+    odd: Option<&Path>,
+) -> Result<Vec<Config>> {
+    let mut parsed = Vec::new();
+    for c in sets.iter().map(AsRef::as_ref) {
+        parsed.push(ConfigSet::parse(c).with_context(|| {
+            format!("--configs: unknown set {c:?} (main, ablation, sweep or ramps)")
+        })?);
+    }
+    let deficits = parse_deficits(deficits)?;
+    let odd = odd
+        .map(|p| -> Result<Arc<OddSpec>> {
+            let spec = OddSpec::read(p).with_context(|| format!("--odd {}", p.display()))?;
+            let missing: Vec<&str> = RAMP_SCENARIOS
+                .iter()
+                .copied()
+                .filter(|s| spec.entry(s).is_none())
+                .collect();
+            if !missing.is_empty() {
+                anyhow::bail!(
+                    "--odd {}: no entry for {} (the ramps look the envelope up by {})",
+                    p.display(),
+                    missing.join(", "),
+                    RAMP_SCENARIOS.join(", ")
+                );
+            }
+            Ok(Arc::new(spec))
+        })
+        .transpose()?;
+    let mut out = configs(&parsed, &deficits, backend);
+    for c in out.iter_mut().filter(|c| c.guard.is_some()) {
+        c.odd = odd.clone();
     }
     Ok(out)
 }

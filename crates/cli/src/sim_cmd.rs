@@ -8,7 +8,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use fogline_sim::config::{BackendSetup, ConfigSet, configs};
+use fogline_sim::config::BackendSetup;
 use fogline_sim::experiment::ExperimentParams;
 use fogline_sim::run::RunParams;
 use fogline_sim::suite::SuiteParams;
@@ -27,7 +27,7 @@ enum SimCommand {
     /// Drive the route suite under every configuration and write tables 1–3 and per-route
     /// records.
     #[command(
-        after_help = "Examples:\n  fogline sim run --quick --out sim-quick\n  fogline sim run --out sim-results\n  fogline sim run --configs main,ablation,sweep --seeds 3 --out sim-all\n  fogline sim run --quick --backend openai --url http://127.0.0.1:8000 --model Qwen/Qwen2-VL-2B-Instruct"
+        after_help = "Examples:\n  fogline sim run --quick --out sim-quick\n  fogline sim run --out sim-results\n  fogline sim run --configs main,ablation,sweep --seeds 3 --out sim-all\n  fogline sim run --configs ramps --seeds 3 --out sim-ramps\n  fogline sim run --quick --backend openai --url http://127.0.0.1:8000 --model Qwen/Qwen2-VL-2B-Instruct"
     )]
     Run(Box<RunArgs>),
     /// Compare two sets of runs of the same suite, configuration by configuration: runs
@@ -64,9 +64,13 @@ struct RunArgs {
     #[arg(long)]
     suite: Option<PathBuf>,
     /// Configuration sets, comma-separated: main (tables 1 and 2), ablation (table 3), sweep
-    /// (the planning step-limit sweep).
+    /// (the planning step-limit sweep), ramps (condition ramps: no guard, the monitor-driven
+    /// guard, the oracle hand-over, the override always on).
     #[arg(long, value_delimiter = ',', default_value = "main")]
     configs: Vec<String>,
+    /// The envelope (`odd.json`) the ramps' guard judges by. Default: the reference planner's.
+    #[arg(long)]
+    odd: Option<PathBuf>,
     /// Deficits, comma-separated: traffic_light, stop_sign, pedestrian, bicycle; `none` runs
     /// the no-deficit configuration only (main set).
     #[arg(
@@ -156,15 +160,6 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         (None, true) => SuiteParams::quick(),
         (None, false) => SuiteParams::longest6(),
     };
-    let mut sets = Vec::new();
-    for c in &a.configs {
-        sets.push(
-            ConfigSet::parse(c).with_context(|| {
-                format!("--configs: unknown set {c:?} (main, ablation or sweep)")
-            })?,
-        );
-    }
-    let deficits = fogline_api::sim::parse_deficits(&a.deficits)?;
     if a.seeds == 0 {
         bail!("--seeds must be at least 1");
     }
@@ -192,7 +187,12 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     let params = ExperimentParams {
         suite,
         seeds: (a.seed..a.seed + a.seeds).collect(),
-        configs: configs(&sets, &deficits, &backend),
+        configs: fogline_api::sim::experiment_configs(
+            &a.configs,
+            &a.deficits,
+            &backend,
+            a.odd.as_deref(),
+        )?,
         run: run_params,
         system_time_limit_s: a.system_time_limit_s,
         llm_latency_ms,

@@ -1,12 +1,16 @@
 //! Experiment configurations: which deficit, whether the RCO controller takes over (with
 //! which modules, planning step limit and backend), and how infractions are scored.
 
+use std::sync::Arc;
+
 use fogline_rco::{
     HostileBackend, Modules, OpenAiBackend, OpenAiParams, Rco, RcoParams, RulesBackend, RulesParams,
 };
+use fogline_types::odd::OddSpec;
 use serde::{Deserialize, Serialize};
 
 use crate::SimError;
+use crate::ramp::GuardMode;
 use crate::score::ScoringParams;
 use crate::sense::DeficitKind;
 
@@ -161,6 +165,14 @@ pub struct Config {
     pub deficit: Option<DeficitKind>,
     /// The RCO take-over, if any.
     pub rco: Option<RcoSetup>,
+    /// A ramps configuration: the condition ramp of each route and who hands the car to
+    /// the override ([`crate::ramp`]); with [`GuardMode::None`] `rco` is none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub guard: Option<GuardMode>,
+    /// The envelope the ramps' guard and oracle judge by (None: the reference planner's,
+    /// [`crate::ramp::reference_odd`]).
+    #[serde(skip)]
+    pub odd: Option<Arc<OddSpec>>,
 }
 
 impl Config {
@@ -186,6 +198,8 @@ impl Config {
             name: "no_deficit".into(),
             deficit: None,
             rco: None,
+            guard: None,
+            odd: None,
         }
     }
 
@@ -195,6 +209,8 @@ impl Config {
             name: format!("{}/no_rco", kind.name()),
             deficit: Some(kind),
             rco: None,
+            guard: None,
+            odd: None,
         }
     }
 
@@ -216,6 +232,20 @@ impl Config {
             name,
             deficit: Some(kind),
             rco: Some(setup),
+            guard: None,
+            odd: None,
+        }
+    }
+
+    /// A ramps configuration: every route with its condition ramp, the override (set up as
+    /// `setup`) handed the car as `mode` says.
+    pub fn ramps(mode: GuardMode, setup: RcoSetup) -> Self {
+        Self {
+            name: mode.config_name().into(),
+            deficit: None,
+            rco: (mode != GuardMode::None).then_some(setup),
+            guard: Some(mode),
+            odd: None,
         }
     }
 }
@@ -230,15 +260,19 @@ pub enum ConfigSet {
     Ablation,
     /// Figure 8: the planning step-limit sweep (1, 3, 5, 8, 12) for every deficit.
     Sweep,
+    /// Condition ramps (noise, darkness, fog rising and falling mid-route): no guard, the
+    /// monitor-driven guard, the oracle hand-over, the override always on.
+    Ramps,
 }
 
 impl ConfigSet {
-    /// Parses `main`, `ablation`, `sweep`.
+    /// Parses `main`, `ablation`, `sweep`, `ramps`.
     pub fn parse(s: &str) -> Option<Self> {
         match s.trim() {
             "main" => Some(Self::Main),
             "ablation" => Some(Self::Ablation),
             "sweep" => Some(Self::Sweep),
+            "ramps" => Some(Self::Ramps),
             _ => None,
         }
     }
@@ -249,6 +283,7 @@ impl ConfigSet {
             Self::Main => "main",
             Self::Ablation => "ablation",
             Self::Sweep => "sweep",
+            Self::Ramps => "ramps",
         }
     }
 }
@@ -312,6 +347,11 @@ pub fn configs(
                     for l in SWEEP_LIMITS {
                         push(Config::with_rco(k, setup(Modules::default(), l)));
                     }
+                }
+            }
+            ConfigSet::Ramps => {
+                for mode in GuardMode::ALL {
+                    push(Config::ramps(mode, setup(Modules::default(), 5)));
                 }
             }
         }

@@ -367,6 +367,151 @@ pub struct PairedDiff {
     pub collisions_per_km: [f64; 2],
 }
 
+/// A ramps configuration against no guard, paired by route (DS, unlimited game time).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RampPaired {
+    /// The configuration (`ramps/guard`, `ramps/oracle`, `ramps/rco`).
+    pub config: String,
+    /// Routes × seeds paired.
+    pub pairs: usize,
+    /// Mean of the per-route differences against `ramps/no_guard` (DS points).
+    pub mean: f64,
+    /// Its 95 % percentile bootstrap interval (as [`PairedDiff::ci95`]).
+    pub ci95: [f64; 2],
+    /// Collisions per km: no guard, this configuration.
+    pub collisions_per_km: [f64; 2],
+}
+
+/// One route of the ramps: its condition and how long each configuration was in override.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RampRoute {
+    /// Seed.
+    pub seed: u64,
+    /// Route.
+    pub route: usize,
+    /// The ramp.
+    pub ramp: crate::ramp::Ramp,
+    /// Game time with the true condition outside the envelope, s (the oracle's run).
+    pub out_s: Option<f64>,
+    /// Per configuration (`ramps/guard`, `ramps/oracle`, `ramps/rco`): game time in
+    /// override, s.
+    pub override_s: BTreeMap<String, f64>,
+    /// Per configuration (all four): the route's driving score.
+    pub driving_score: BTreeMap<String, f64>,
+}
+
+/// A configuration's runs by seed and route.
+type ByRoute<'a> = BTreeMap<(u64, usize), &'a RouteRecord>;
+
+/// The ramps' comparison: each guard configuration against no guard, the monitor-driven
+/// guard against the oracle, and the time in override per route.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RampsSummary {
+    /// Guard, oracle and always-on override against no guard.
+    pub paired: Vec<RampPaired>,
+    /// Mean DS of the monitor-driven guard over that of the oracle hand-over.
+    pub guard_to_oracle: Option<f64>,
+    /// Per route and seed.
+    pub routes: Vec<RampRoute>,
+}
+
+impl RampsSummary {
+    /// The summary of the ramps configurations in `records` (None when `ramps/no_guard`
+    /// did not run).
+    pub fn of(configs: &[ConfigSummary], records: &[RouteRecord]) -> Option<Self> {
+        use crate::ramp::GuardMode;
+        let base = GuardMode::None.config_name();
+        configs.iter().find(|c| c.config == base)?;
+        let of = |name: &str| -> ByRoute<'_> {
+            records
+                .iter()
+                .filter(|r| r.config == name)
+                .map(|r| ((r.seed, r.route), r))
+                .collect()
+        };
+        let none = of(base);
+        let collisions = |name: &str| {
+            configs.iter().find(|c| c.config == name).map_or(0.0, |c| {
+                crate::score::collisions_per_km(&c.infractions_per_km)
+            })
+        };
+        let mut paired = Vec::new();
+        for mode in [GuardMode::Monitor, GuardMode::Oracle, GuardMode::Always] {
+            let name = mode.config_name();
+            let with = of(name);
+            let d: Vec<f64> = with
+                .iter()
+                .filter_map(|(k, r)| {
+                    none.get(k)
+                        .map(|b| r.score.driving_score - b.score.driving_score)
+                })
+                .collect();
+            let Some((mean, ci95)) = paired_bootstrap(&d, BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED)
+            else {
+                continue;
+            };
+            paired.push(RampPaired {
+                config: name.into(),
+                pairs: d.len(),
+                mean,
+                ci95,
+                collisions_per_km: [collisions(base), collisions(name)],
+            });
+        }
+        let mean_ds = |name: &str| {
+            configs
+                .iter()
+                .find(|c| c.config == name)
+                .map(|c| c.unlimited.driving_score.by_route.mean)
+        };
+        let guard_to_oracle = match (
+            mean_ds(GuardMode::Monitor.config_name()),
+            mean_ds(GuardMode::Oracle.config_name()),
+        ) {
+            (Some(g), Some(o)) if o > 0.0 => Some(g / o),
+            _ => None,
+        };
+        let by_mode: Vec<(GuardMode, ByRoute<'_>)> = GuardMode::ALL
+            .iter()
+            .map(|m| (*m, of(m.config_name())))
+            .collect();
+        let routes = none
+            .iter()
+            .filter_map(|(&(seed, route), r)| {
+                let ramp = r.ramp?;
+                let mut override_s = BTreeMap::new();
+                let mut driving_score = BTreeMap::new();
+                let mut out_s = None;
+                for (m, recs) in &by_mode {
+                    let Some(x) = recs.get(&(seed, route)) else {
+                        continue;
+                    };
+                    driving_score.insert(m.config_name().to_string(), x.score.driving_score);
+                    if *m != GuardMode::None {
+                        override_s.insert(m.config_name().to_string(), x.takeover_s);
+                    }
+                    if *m == GuardMode::Oracle {
+                        out_s = Some(x.deficit_s);
+                    }
+                }
+                Some(RampRoute {
+                    seed,
+                    route,
+                    ramp,
+                    out_s,
+                    override_s,
+                    driving_score,
+                })
+            })
+            .collect();
+        Some(Self {
+            paired,
+            guard_to_oracle,
+            routes,
+        })
+    }
+}
+
 /// Resamples of the paired bootstrap.
 pub const BOOTSTRAP_RESAMPLES: usize = 10_000;
 /// The paired bootstrap's seed (fixed: the interval is a function of the records).
@@ -414,6 +559,9 @@ pub struct Summary {
     pub paired: Vec<PairedDiff>,
     /// The step-limit sweep (figure 8), when its configurations ran.
     pub sweep: Vec<SweepRow>,
+    /// Condition ramps, when their configurations ran.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ramps: Option<RampsSummary>,
     /// Wall-clock seconds of the runs with a deficit (the full-suite timing), summed over
     /// runs (divide by threads for the elapsed time), not deterministic.
     pub deficit_runs_wall_s: f64,
@@ -583,10 +731,12 @@ impl Summary {
             .map(|r| r.wall_s)
             // (`sum` of no values is −0.0, which prints as "-0.0")
             .fold(0.0, |a, b| a + b);
+        let ramps = RampsSummary::of(&configs, records);
         Self {
             configs,
             paired,
             sweep,
+            ramps,
             deficit_runs_wall_s,
         }
     }

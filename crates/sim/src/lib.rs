@@ -63,6 +63,7 @@ pub mod config;
 pub mod experiment;
 pub mod geom;
 pub mod output;
+pub mod ramp;
 pub mod route;
 pub mod run;
 pub mod score;

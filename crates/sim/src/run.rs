@@ -23,6 +23,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::Instant;
 
+use fogline_monitor::Monitor;
 use fogline_perturb::frame::{Frame, FrameKey};
 use fogline_planner::detect::ObjectSeen;
 use fogline_planner::perceive::{Lost, ObjectKind};
@@ -31,6 +32,7 @@ use fogline_rco::{
     Surroundings, TrafficEnv, TrafficObject, View,
 };
 use fogline_types::clip::{CameraCalib, CameraId, CameraInput, EgoPose};
+use fogline_types::odd::OddSpec;
 use fogline_types::planner::Planner;
 use serde::{Deserialize, Serialize};
 
@@ -38,13 +40,18 @@ use crate::SimError;
 use crate::agent::{AgentInput, AgentParams, Baseline, JunctionAhead};
 use crate::config::Config;
 use crate::geom::{Obb, P2, dist, dot, sub, within};
+use crate::ramp::{
+    GuardMode, RAMP_SCENARIOS, Ramp, RampAxis, RampLens, calibrated_monitor, inside, mosaic,
+    ramp_scenario, reference_odd,
+};
 use crate::route::Route;
 use crate::score::{
     BlockedMonitor, CollisionFilter, Event, EventKind, OutsideLanesMonitor, RedLightMonitor,
     RouteCompletion, RouteDeviationMonitor, RouteScore, ScoringParams, StopSignMonitor, TimeLimits,
     route_timeout_s,
 };
-use crate::sense::{Daylight, Lens, PartsCache, Weather, look, scene_at, see};
+use crate::sense::{Daylight, Lens, PartsCache, Seen, Surround, Weather, look, scene_at, see};
+pub use crate::suite::RouteCase;
 use crate::town::{Control, LANE_W_M, Light, Town, ZONE_M};
 use crate::traffic::{EgoView, Traffic, TrafficParams, ego_box};
 use crate::vehicle::{BicycleParams, VehicleControl, VehicleState, step as bike_step};
@@ -187,23 +194,6 @@ impl Default for RunParams {
     }
 }
 
-/// A route to drive: the town it is in, the route, the weather and daylight, its seed.
-#[derive(Debug, Clone)]
-pub struct RouteCase {
-    /// Index in the suite.
-    pub id: usize,
-    /// Index of its town.
-    pub town: usize,
-    /// The route.
-    pub route: Route,
-    /// Weather.
-    pub weather: Weather,
-    /// Daylight.
-    pub daylight: Daylight,
-    /// Seed of its traffic.
-    pub seed: u64,
-}
-
 /// How the run ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -311,10 +301,14 @@ pub struct RouteRecord {
     pub events: Vec<Event>,
     /// Signal behaviour.
     pub signals: SignalStats,
-    /// Game time with a deficit present in the agent's frames, s.
+    /// Game time with a deficit present in the agent's frames, s; in a ramps configuration,
+    /// game time with the true condition outside the envelope.
     pub deficit_s: f64,
     /// Game time the RCO controller drove, s.
     pub takeover_s: f64,
+    /// The route's condition ramp (ramps configurations).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ramp: Option<Ramp>,
     /// RCO activity (configurations with RCO).
     pub rco: Option<RcoStats>,
     /// Times the baseline's unstick rule fired.
@@ -439,6 +433,32 @@ pub fn run_route_with(
     let scoring = config.scoring(params.stop_sign_penalty);
     scoring.validate()?;
     let lens = Lens::new(case.weather, config.deficit)?;
+    // A ramps configuration: the route's condition ramp, the envelope it is judged by, and
+    // the monitor when it drives the guard.
+    let mut ramp: Option<RampLens> = config.guard.map(|_| {
+        RampLens::new(
+            Ramp::for_route(seed, case.id),
+            fogline_stats::seed::child(seed, &[case.seed, 0x7a3c]),
+        )
+    });
+    let odd: Option<Arc<OddSpec>> = match (&config.guard, &config.odd) {
+        (None, _) => None,
+        (Some(_), Some(o)) => Some(Arc::clone(o)),
+        (Some(_), None) => Some(Arc::new(reference_odd()?)),
+    };
+    let mut monitor = match (config.guard, &odd) {
+        (Some(GuardMode::Monitor), Some(o)) => Some(
+            Monitor::new(
+                o,
+                RAMP_SCENARIOS[0],
+                calibrated_monitor(case.weather, case.daylight, &params.sensors.cameras().0[1])?,
+            )
+            .map_err(|e| SimError::Params(format!("the guard's monitor: {e}")))?,
+        ),
+        _ => None,
+    };
+    // The true condition is outside the envelope (ramps).
+    let mut condition_out = false;
     let lk = look(case.weather, case.daylight);
     let cache = PartsCache::new(town);
     let run_seed = fogline_stats::seed::child(seed, &[case.seed, 0x5151]);
@@ -551,8 +571,8 @@ pub fn run_route_with(
         if tick.is_multiple_of(every) {
             let sc = scene_at(town, &traffic, &cache, &ego, t, lk);
             let key = |cam: CameraId| FrameKey::new(case.id as u64, cam.index() as u64, tick);
-            let w = see(&sc, &wide, &lens, key(CameraId::FrontWide));
-            let te = see(&sc, &tele, &lens, key(CameraId::FrontTele));
+            let w = see_at(&sc, &wide, &lens, &mut ramp, t, key(CameraId::FrontWide))?;
+            let te = see_at(&sc, &tele, &lens, &mut ramp, t, key(CameraId::FrontTele))?;
             deficit_agent = !w.deficits.is_empty() || !te.deficits.is_empty();
             push_frame(&mut wide_frames, w.frame.clone());
             let te_frame = te.frame;
@@ -568,7 +588,68 @@ pub fn run_route_with(
             // walker masked far ahead in the tele view does not hand over, but its outline
             // is no red lamp either).
             let mut present = false;
-            if rco.is_some() {
+            if let (Some(mode), Some(r), Some(odd)) =
+                (config.guard, ramp.as_ref().map(|l| *l.ramp()), &odd)
+            {
+                // Ramps: the guard decides from the frames (the monitor), or the true
+                // condition does (the oracle), under the envelope of the situation.
+                let clock = Instant::now();
+                let scenario = ramp_scenario(route, route_s, agent.intent().lead_gap_m);
+                let level = r.level(t);
+                condition_out = odd.entry(scenario).map_or(level != r.axis.identity(), |e| {
+                    !inside(e.threshold(r.axis.name()).as_ref(), r.axis, level)
+                });
+                present = match mode {
+                    GuardMode::None => false,
+                    GuardMode::Oracle => condition_out,
+                    GuardMode::Always => level != r.axis.identity(),
+                    GuardMode::Monitor => match monitor.as_mut() {
+                        Some(m) => {
+                            // A situation without an entry keeps the one in use.
+                            let _ = m.set_scenario(scenario);
+                            // The three ground-level cameras as one mosaic: a global
+                            // condition darkens, fogs or noises all of them, a dark car
+                            // filling one view shifts a third of the pixels.
+                            let [l, r_] = &looks;
+                            let sides = [
+                                see_at(&sc, l, &lens, &mut ramp, t, key(l.id))?.frame,
+                                see_at(&sc, r_, &lens, &mut ramp, t, key(r_.id))?.frame,
+                            ];
+                            let (px, mw, mh) = mosaic(&[&w.frame, &sides[0], &sides[1]]);
+                            let rec = m.step_frame(&px, mw, mh).map_err(|e| {
+                                SimError::Params(format!("the guard's monitor: {e}"))
+                            })?;
+                            if log::log_enabled!(log::Level::Trace) {
+                                log::trace!(
+                                    "monitor t {t:.1} {scenario} {} {:?} {} {level}",
+                                    rec.in_envelope,
+                                    rec.axes
+                                        .iter()
+                                        .map(|a| (
+                                            a.axis.as_str(),
+                                            a.estimate.map(|e| (e * 100.0).round() / 100.0),
+                                            (a.bound * 100.0).round() / 100.0
+                                        ))
+                                        .collect::<Vec<_>>(),
+                                    r.axis.name()
+                                );
+                            }
+                            if rec.switched && log::log_enabled!(log::Level::Debug) {
+                                log::debug!(
+                                    "guard route {} t {t:.1} {scenario}: {} ({}; {} {level})",
+                                    case.id,
+                                    if rec.in_envelope { "in" } else { "out" },
+                                    rec.reason,
+                                    r.axis.name()
+                                );
+                            }
+                            !rec.in_envelope
+                        }
+                        None => false,
+                    },
+                };
+                parts[2] += clock.elapsed().as_secs_f64();
+            } else if rco.is_some() {
                 let clock = Instant::now();
                 let lost = lost_in(&[(&wide, &w.frame), (&tele, &te_frame)]);
                 let wide_lost = lost.iter().any(|(c, _)| *c == CameraId::FrontWide);
@@ -617,7 +698,11 @@ pub fn run_route_with(
             }
             if agent.wants_look(ego.speed_mps, odometer) {
                 let clock = Instant::now();
-                let now = looks.map(|c| see(&sc, &c, &lens, key(c.id)).frame);
+                let [l, r] = &looks;
+                let now = [
+                    see_at(&sc, l, &lens, &mut ramp, t, key(l.id))?.frame,
+                    see_at(&sc, r, &lens, &mut ramp, t, key(r.id))?.frame,
+                ];
                 let moved = looked.as_ref().map(|(before, _)| {
                     looks
                         .iter()
@@ -655,21 +740,44 @@ pub fn run_route_with(
                             }
                         }
                         let views_seen = [
-                            (left, see(&sc, &left, &lens, key(CameraId::CrossLeft)).frame),
+                            (
+                                left,
+                                see_at(&sc, &left, &lens, &mut ramp, t, key(CameraId::CrossLeft))?
+                                    .frame,
+                            ),
                             (wide, w.frame.clone()),
                             (
                                 right,
-                                see(&sc, &right, &lens, key(CameraId::CrossRight)).frame,
+                                see_at(
+                                    &sc,
+                                    &right,
+                                    &lens,
+                                    &mut ramp,
+                                    t,
+                                    key(CameraId::CrossRight),
+                                )?
+                                .frame,
                             ),
                         ];
-                        let views: Vec<View> = views_seen
+                        let mut views: Vec<View> = views_seen
                             .iter()
                             .map(|(calib, frame)| pixel_view(calib, frame, agent.objects()))
                             .collect();
+                        if ramp.is_some() {
+                            // Global degradation: each view is one lost region, whole.
+                            for v in &mut views {
+                                v.deficits = vec![PixelBox::new(
+                                    0.0,
+                                    0.0,
+                                    f64::from(v.width),
+                                    f64::from(v.height),
+                                )];
+                            }
+                        }
                         deficit_side = views
                             .iter()
                             .any(|v| v.camera != CameraId::FrontWide && !v.deficits.is_empty());
-                        let obs = observation(
+                        let mut obs = observation(
                             rco_tick,
                             views,
                             &ego,
@@ -683,6 +791,19 @@ pub fn run_route_with(
                             agent.intent().lead_gap_m,
                             agent.objects().len(),
                         );
+                        if let Some(lens) = ramp.as_ref() {
+                            // The degraded axis is what the override is told of the
+                            // surroundings, as the guard does.
+                            match lens.ramp().axis {
+                                RampAxis::Fog => {
+                                    obs.surroundings.weather = fogline_rco::Weather::Fog
+                                }
+                                RampAxis::Darken => {
+                                    obs.surroundings.daylight = fogline_rco::Daylight::Night;
+                                }
+                                RampAxis::GaussianNoise => {}
+                            }
+                        }
                         rco_tick += 1;
                         let d = ctl.step(&obs);
                         if log::log_enabled!(log::Level::Trace) {
@@ -734,7 +855,9 @@ pub fn run_route_with(
             prev_speed = ego.speed_mps;
             prev_yaw = ego.yaw_rad;
         }
-        if deficit_agent || (rco_active && deficit_side) {
+        if (ramp.is_none() && (deficit_agent || (rco_active && deficit_side)))
+            || (ramp.is_some() && condition_out)
+        {
             deficit_s += DT;
         }
         // ---- Control and dynamics -------------------------------------------------------
@@ -982,6 +1105,7 @@ pub fn run_route_with(
         signals: sig,
         deficit_s,
         takeover_s,
+        ramp: ramp.as_ref().map(|l| *l.ramp()),
         rco: rco_stats,
         unstick: agent.unstick_count,
         plans: agent.plans,
@@ -991,6 +1115,22 @@ pub fn run_route_with(
         wall_s: wall.elapsed().as_secs_f64(),
         wall_parts_s: parts,
     })
+}
+
+/// [`see`], then the run's condition ramp at game time `t`, when it has one.
+fn see_at(
+    sc: &Surround,
+    calib: &CameraCalib,
+    lens: &Lens,
+    ramp: &mut Option<RampLens>,
+    t: f64,
+    key: FrameKey,
+) -> Result<Seen, SimError> {
+    let mut seen = see(sc, calib, lens, key);
+    if let Some(r) = ramp.as_mut() {
+        seen.frame = r.apply(seen.frame, t, key)?;
+    }
+    Ok(seen)
 }
 
 fn push_frame(q: &mut VecDeque<Frame>, f: Frame) {

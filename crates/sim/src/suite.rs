@@ -35,7 +35,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::SimError;
 use crate::route::{self, Route};
-use crate::run::RouteCase;
 use crate::sense::{Daylight, Weather};
 use crate::town::{Town, TownParams};
 
@@ -272,6 +271,23 @@ fn triangular_quantile(u: f64, a: f64, b: f64, c: f64) -> f64 {
     } else {
         b - ((1.0 - u) * (b - a) * (b - c)).sqrt()
     }
+}
+
+/// A route to drive: the town it is in, the route, the weather and daylight, its seed.
+#[derive(Debug, Clone)]
+pub struct RouteCase {
+    /// Index in the suite.
+    pub id: usize,
+    /// Index of its town.
+    pub town: usize,
+    /// The route.
+    pub route: Route,
+    /// Weather.
+    pub weather: Weather,
+    /// Daylight.
+    pub daylight: Daylight,
+    /// Seed of its traffic.
+    pub seed: u64,
 }
 
 /// A built suite: its towns and routes.

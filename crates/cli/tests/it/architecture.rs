@@ -43,6 +43,7 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
                 "fogline-world",
                 "fogline-perturb",
                 "fogline-planner",
+                "fogline-monitor",
                 "fogline-rco",
             ][..],
         ),

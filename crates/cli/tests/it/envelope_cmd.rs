@@ -356,6 +356,20 @@ fn demo_runs_offline_and_prints_its_outputs() {
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    // The quick closed loop ran the condition ramps too, and the report shows the guarded run.
+    assert!(
+        s.contains("ramps/guard") && s.contains("ramps/oracle"),
+        "{s}"
+    );
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        report.contains("ramps/guard"),
+        "the report shows the guarded run"
+    );
+    assert!(
+        report.contains("kept the car in override"),
+        "and the guard's note"
+    );
     // Made in a staging directory and committed as one set: nothing of it is left, and the
     // envelope names the table where it now is.
     assert!(!out.join(".fogline-demo.staging").exists());

@@ -1,4 +1,5 @@
-//! `fogline sim compare`: two sets of runs, paired by seed and route.
+//! `fogline sim compare`: two sets of runs, paired by seed and route; `fogline sim run`'s
+//! bad input.
 
 use crate::fogline;
 
@@ -70,4 +71,45 @@ fn sim_compare_finds_runs_identical_across_thread_counts_and_names_a_changed_one
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("bad.jsonl") && err.contains("line 1"), "{err}");
+}
+
+#[test]
+fn sim_run_ramps_names_a_bad_envelope_and_a_bad_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("odd.json");
+    std::fs::write(&bad, "{\"kind\": \"something.else\"}").unwrap();
+    // A valid envelope without the situations the ramps look up.
+    let mut spec: fogline_types::odd::OddSpec =
+        fogline_types::odd::OddSpec::from_json(fogline_sim::ramp::REFERENCE_ODD).unwrap();
+    spec.entries.retain(|e| e.scenario != "INTERSECTION");
+    let partial = dir.path().join("partial.json");
+    std::fs::write(&partial, spec.to_json()).unwrap();
+    for (args, expect) in [
+        (
+            vec!["--configs", "ramps", "--odd", bad.to_str().unwrap()],
+            "--odd",
+        ),
+        (
+            vec!["--configs", "ramps", "--odd", "/nonexistent/odd.json"],
+            "/nonexistent/odd.json",
+        ),
+        (
+            vec!["--configs", "ramps", "--odd", partial.to_str().unwrap()],
+            "no entry for INTERSECTION",
+        ),
+        (vec!["--configs", "ramp"], "main, ablation, sweep or ramps"),
+    ] {
+        let mut all = vec![
+            "sim",
+            "run",
+            "--quick",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ];
+        all.extend(args);
+        let o = fogline(&all);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(expect), "{err}");
+    }
 }

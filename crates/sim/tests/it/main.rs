@@ -4,6 +4,7 @@
 
 mod bad_input;
 mod closed_loop;
+mod ramps;
 mod scoring;
 mod side_look;
 mod sign_reader;
