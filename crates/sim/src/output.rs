@@ -194,6 +194,15 @@ fn notes(results: &Results) -> Vec<String> {
     n
 }
 
+/// How a configuration's runs ended: `completed 30, agent_blocked 6`.
+fn terminations(c: &ConfigSummary) -> String {
+    c.terminations
+        .iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn ms(s: &Stat, prec: usize) -> String {
     let m = s.shown();
     if m.n == 0 {
@@ -316,11 +325,6 @@ fn ramps_section(out: &mut String, s: &crate::experiment::Summary, r: &RampsSumm
                 format!("{:.1}", v.iter().sum::<f64>() / v.len() as f64)
             }
         };
-        let term: Vec<String> = c
-            .terminations
-            .iter()
-            .map(|(k, v)| format!("{k} {v}"))
-            .collect();
         let u = &c.unlimited;
         let _ = writeln!(
             out,
@@ -338,7 +342,7 @@ fn ramps_section(out: &mut String, s: &crate::experiment::Summary, r: &RampsSumm
             } else {
                 mean_of(&|x| x.override_s.get(mode.config_name()).copied())
             },
-            term.join(", ")
+            terminations(c)
         );
     }
     if !r.paired.is_empty() {
@@ -531,11 +535,6 @@ pub fn markdown(results: &Results) -> String {
     out.push_str("\n## Runs\n\n");
     out.push_str("| Configuration | Runs | Deficit present | RCO drove | LLM calls | ms/call | Fallbacks | Terminations | Infractions per km |\n|---|---|---|---|---|---|---|---|---|\n");
     for c in &s.configs {
-        let term: Vec<String> = c
-            .terminations
-            .iter()
-            .map(|(k, v)| format!("{k} {v}"))
-            .collect();
         let inf: Vec<String> = c
             .infractions_per_km
             .iter()
@@ -552,7 +551,7 @@ pub fn markdown(results: &Results) -> String {
             c.llm_calls,
             c.llm_ms_per_call.map_or("-".into(), |m| format!("{m:.3}")),
             c.fallbacks,
-            term.join(", "),
+            terminations(c),
             if inf.is_empty() {
                 "-".into()
             } else {

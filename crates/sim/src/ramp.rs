@@ -344,12 +344,7 @@ fn calibrate(
         let mut s = 0.0;
         while s < case.route.length_m() {
             let (p, u) = case.route.pose(s);
-            let ego = VehicleState {
-                x_m: p[0],
-                y_m: p[1],
-                yaw_rad: u[1].atan2(u[0]),
-                speed_mps: 0.0,
-            };
+            let ego = VehicleState::standing(p, u);
             let sc = scene_at(town, &traffic, &cache, &ego, 0.0, lk);
             let key = |c: &CameraCalib| {
                 FrameKey::new(case.id as u64, c.id.index() as u64, frames.len() as u64)
@@ -510,12 +505,7 @@ mod tests {
                 let mut last = None;
                 for k in 0..30u64 {
                     let (p, u) = case.route.pose(15.0 + 8.0 * k as f64);
-                    let ego = VehicleState {
-                        x_m: p[0],
-                        y_m: p[1],
-                        yaw_rad: u[1].atan2(u[0]),
-                        speed_mps: 0.0,
-                    };
+                    let ego = VehicleState::standing(p, u);
                     let sc = scene_at(town, &traffic, &cache, &ego, 0.0, lk);
                     let views = [&wide, &sides[0], &sides[1]].map(|c| {
                         let key = FrameKey::new(7, c.id.index() as u64, k);

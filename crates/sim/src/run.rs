@@ -472,12 +472,7 @@ pub fn run_route_with(
         ..RcoStats::default()
     });
     let (p0, u0) = route.pose(0.0);
-    let mut ego = VehicleState {
-        x_m: p0[0],
-        y_m: p0[1],
-        yaw_rad: u0[1].atan2(u0[0]),
-        speed_mps: 0.0,
-    };
+    let mut ego = VehicleState::standing(p0, u0);
     let s = &params.sensors;
     let ([left, wide, right], tele) = s.cameras();
     let agent_every = (TICK_HZ / s.agent_hz).round() as u64;

@@ -134,6 +134,16 @@ pub struct VehicleState {
 }
 
 impl VehicleState {
+    /// Standing at `pos`, heading along `dir` (a route's pose).
+    pub fn standing(pos: [f64; 2], dir: [f64; 2]) -> Self {
+        Self {
+            x_m: pos[0],
+            y_m: pos[1],
+            yaw_rad: dir[1].atan2(dir[0]),
+            speed_mps: 0.0,
+        }
+    }
+
     /// The unit heading vector.
     pub fn heading(&self) -> [f64; 2] {
         [self.yaw_rad.cos(), self.yaw_rad.sin()]
