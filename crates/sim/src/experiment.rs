@@ -403,6 +403,32 @@ pub struct RampRoute {
 /// A configuration's runs by seed and route.
 type ByRoute<'a> = BTreeMap<(u64, usize), &'a RouteRecord>;
 
+/// The runs of configuration `name` by seed and route.
+fn by_route<'a>(records: &'a [RouteRecord], name: &str) -> ByRoute<'a> {
+    records
+        .iter()
+        .filter(|r| r.config == name)
+        .map(|r| ((r.seed, r.route), r))
+        .collect()
+}
+
+/// The per-route DS differences `with − base` over the runs both have.
+fn ds_differences(base: &ByRoute<'_>, with: &ByRoute<'_>) -> Vec<f64> {
+    with.iter()
+        .filter_map(|(k, r)| {
+            base.get(k)
+                .map(|b| r.score.driving_score - b.score.driving_score)
+        })
+        .collect()
+}
+
+/// Collisions per km of configuration `name` (0 when it did not run).
+fn collisions_of(configs: &[ConfigSummary], name: &str) -> f64 {
+    configs.iter().find(|c| c.config == name).map_or(0.0, |c| {
+        crate::score::collisions_per_km(&c.infractions_per_km)
+    })
+}
+
 /// The ramps' comparison: each guard configuration against no guard, the monitor-driven
 /// guard against the oracle, and the time in override per route.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -416,36 +442,25 @@ pub struct RampsSummary {
 }
 
 impl RampsSummary {
+    /// The mean over routes of what `f` gives (None when it gives nothing).
+    pub fn mean_over_routes(&self, f: impl Fn(&RampRoute) -> Option<f64>) -> Option<f64> {
+        let v: Vec<f64> = self.routes.iter().filter_map(f).collect();
+        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+    }
+
     /// The summary of the ramps configurations in `records` (None when `ramps/no_guard`
     /// did not run).
     pub fn of(configs: &[ConfigSummary], records: &[RouteRecord]) -> Option<Self> {
         use crate::ramp::GuardMode;
         let base = GuardMode::None.config_name();
         configs.iter().find(|c| c.config == base)?;
-        let of = |name: &str| -> ByRoute<'_> {
-            records
-                .iter()
-                .filter(|r| r.config == name)
-                .map(|r| ((r.seed, r.route), r))
-                .collect()
-        };
+        let of = |name: &str| by_route(records, name);
         let none = of(base);
-        let collisions = |name: &str| {
-            configs.iter().find(|c| c.config == name).map_or(0.0, |c| {
-                crate::score::collisions_per_km(&c.infractions_per_km)
-            })
-        };
+        let collisions = |name: &str| collisions_of(configs, name);
         let mut paired = Vec::new();
         for mode in [GuardMode::Monitor, GuardMode::Oracle, GuardMode::Always] {
             let name = mode.config_name();
-            let with = of(name);
-            let d: Vec<f64> = with
-                .iter()
-                .filter_map(|(k, r)| {
-                    none.get(k)
-                        .map(|b| r.score.driving_score - b.score.driving_score)
-                })
-                .collect();
+            let d = ds_differences(&none, &of(name));
             let Some((mean, ci95)) = paired_bootstrap(&d, BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED)
             else {
                 continue;
@@ -691,30 +706,15 @@ impl Summary {
             let (Some(base), Some(with)) = (base, with) else {
                 continue;
             };
-            let of = |name: &str| -> BTreeMap<(u64, usize), &RouteRecord> {
-                records
-                    .iter()
-                    .filter(|r| r.config == name)
-                    .map(|r| ((r.seed, r.route), r))
-                    .collect()
-            };
-            let (b, w) = (of(&base.name), of(&with.name));
-            let d: Vec<f64> = w
-                .iter()
-                .filter_map(|(key, r)| {
-                    b.get(key)
-                        .map(|x| r.score.driving_score - x.score.driving_score)
-                })
-                .collect();
+            let d = ds_differences(
+                &by_route(records, &base.name),
+                &by_route(records, &with.name),
+            );
             let Some((mean, ci95)) = paired_bootstrap(&d, BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED)
             else {
                 continue;
             };
-            let collisions = |name: &str| {
-                configs.iter().find(|c| c.config == name).map_or(0.0, |c| {
-                    crate::score::collisions_per_km(&c.infractions_per_km)
-                })
-            };
+            let collisions = |name: &str| collisions_of(&configs, name);
             paired.push(PairedDiff {
                 deficit: k,
                 config: with.name.clone(),

@@ -167,14 +167,10 @@ fn notes(results: &Results) -> Vec<String> {
         ));
     }
     if let Some(r) = &results.summary.ramps {
-        let mean = |f: &dyn Fn(&crate::experiment::RampRoute) -> Option<f64>| {
-            let v: Vec<f64> = r.routes.iter().filter_map(f).collect();
-            (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
-        };
         let guard = crate::ramp::GuardMode::Monitor.config_name();
         if let (Some(out_s), Some(over_s)) = (
-            mean(&|x| x.out_s),
-            mean(&|x| x.override_s.get(guard).copied()),
+            r.mean_over_routes(|x| x.out_s),
+            r.mean_over_routes(|x| x.override_s.get(guard).copied()),
         ) {
             n.push(format!(
                 "Condition ramps (ramps/…): each route's noise, darkness or fog rises past the reference planner's envelope and clears; the runtime monitor's guard (ramps/guard) kept the car in override {over_s:.1} s per route while the true condition was outside the envelope {out_s:.1} s{}.",
@@ -316,14 +312,9 @@ fn ramps_section(out: &mut String, s: &crate::experiment::Summary, r: &RampsSumm
         let Some(c) = s.config(mode.config_name()) else {
             continue;
         };
-        let runs: Vec<&crate::experiment::RampRoute> = r.routes.iter().collect();
         let mean_of = |f: &dyn Fn(&crate::experiment::RampRoute) -> Option<f64>| {
-            let v: Vec<f64> = runs.iter().filter_map(|x| f(x)).collect();
-            if v.is_empty() {
-                "-".to_string()
-            } else {
-                format!("{:.1}", v.iter().sum::<f64>() / v.len() as f64)
-            }
+            r.mean_over_routes(f)
+                .map_or("-".to_string(), |m| format!("{m:.1}"))
         };
         let u = &c.unlimited;
         let _ = writeln!(
