@@ -147,6 +147,27 @@ const GOAL_MS: [f64; 2] = [10.0, 20.0];
 /// Part (b) under one condition: the frames' encode and decode on one thread, then the same
 /// request answered by a trivial planner in-process, over egodriver gRPC and over HTTP on
 /// loopback, PNG and JPEG 95, `a.runs` runs of `a.calls` calls each.
+/// The jpeg-encoder crate's time to encode `frames` on one thread at `quality`, 4:4:4 (the
+/// median of five rounds, ms), and its bytes.
+fn peer_jpeg(frames: &[(&[u8], u32, u32)], quality: u8) -> Result<(f64, usize)> {
+    let mut times = Vec::new();
+    let mut bytes = 0;
+    for _ in 0..5 {
+        let t = Instant::now();
+        bytes = 0;
+        for &(f, w, h) in frames {
+            let mut out = Vec::with_capacity(f.len() / 8);
+            let mut enc = jpeg_encoder::Encoder::new(&mut out, quality);
+            enc.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
+            enc.encode(f, w as u16, h as u16, jpeg_encoder::ColorType::Rgb)
+                .context("the jpeg-encoder crate")?;
+            bytes += out.len();
+        }
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok((median(times), bytes))
+}
+
 fn remote_overhead(
     a: &CampaignBench,
     condition: &str,
@@ -254,8 +275,24 @@ fn remote_overhead(
             rayon::current_num_threads(),
             par_enc + par_dec
         )?;
+        // The peer: the jpeg-encoder crate (AVX2 where the CPU has it) at the same setting.
+        let peer = match format {
+            ImageFormat::Jpeg { quality } => {
+                let (ms, peer_bytes) = peer_jpeg(&all, quality)?;
+                writeln!(
+                    out,
+                    "  {:<7} the jpeg-encoder crate, same setting, one thread: encode {ms:.2} ms, {:.0} kB — fogline's encoder {:.2}× as fast",
+                    "",
+                    peer_bytes as f64 / 1e3,
+                    ms / enc.max(1e-9)
+                )?;
+                serde_json::json!({"encoder": "jpeg-encoder", "encode_ms": ms, "bytes": peer_bytes})
+            }
+            ImageFormat::Png => serde_json::Value::Null,
+        };
         codec.push(serde_json::json!({
             "format": fname, "frames": all.len(), "encode_ms": enc, "decode_ms": dec, "bytes": bytes,
+            "peer": peer,
             "all_cores": {
                 "threads": rayon::current_num_threads(), "encode_ms": par_enc, "decode_ms": par_dec,
             },

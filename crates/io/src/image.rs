@@ -56,7 +56,7 @@ pub enum PngSpeed {
     /// 45 % less encode and 20 % less decode time than `Fast` on the world's 576×320
     /// frames, for 4 % more bytes. A frame that does not compress (sensor noise: σ 30
     /// leaves deflate nothing to find) is sent in stored deflate blocks instead: every
-    /// eighth row is compressed first, and when that sample shrinks by less than
+    /// 32nd row is compressed first, and when that sample shrinks by less than
     /// [`WIRE_MIN_SAVING`] the whole frame is not tried — deflate would spend ~2 ms per
     /// 576×320 frame to save nothing.
     Wire,
@@ -65,7 +65,7 @@ pub enum PngSpeed {
 }
 
 /// Which encoder writes `format` (PNG at `speed`), in words, for benchmarks and logs:
-/// `png crate, fast deflate, adaptive filter` or `jpeg-encoder, quality 95, 4:4:4, AVX2`.
+/// `png crate, fast deflate, adaptive filter` or `fogline's encoder, quality 95, 4:4:4, AVX2`.
 pub fn encoder_name(format: ImageFormat, speed: PngSpeed) -> String {
     match format {
         ImageFormat::Png => format!(
@@ -76,17 +76,14 @@ pub fn encoder_name(format: ImageFormat, speed: PngSpeed) -> String {
                 PngSpeed::Archive => "Paeth filter",
             }
         ),
-        ImageFormat::Jpeg { quality } => {
-            #[cfg(target_arch = "x86_64")]
-            let simd = if std::is_x86_feature_detected!("avx2") {
+        ImageFormat::Jpeg { quality } => format!(
+            "fogline's encoder, quality {quality}, 4:4:4, {}",
+            if crate::jpeg::avx2_available() {
                 "AVX2"
             } else {
-                "scalar"
-            };
-            #[cfg(not(target_arch = "x86_64"))]
-            let simd = "scalar";
-            format!("jpeg-encoder, quality {quality}, 4:4:4, {simd}")
-        }
+                "portable"
+            }
+        ),
     }
 }
 
@@ -96,9 +93,8 @@ pub fn encode(rgb: &[u8], width: u32, height: u32, format: ImageFormat) -> Resul
 }
 
 /// Encodes one RGB8 row-major frame of `width × height` pixels, a PNG at `speed`. JPEG is
-/// written by the `jpeg-encoder` crate (baseline, libjpeg's quality scaling, no chroma
-/// subsampling — 4:4:4, as the `image` crate's encoder wrote before — and AVX2 colour
-/// conversion and DCT where the CPU has it, detected at run time).
+/// written by fogline's own encoder ([`crate::jpeg`]: baseline, libjpeg's quality scaling,
+/// no chroma subsampling — 4:4:4 — the same bytes on every CPU).
 pub fn encode_with(
     rgb: &[u8],
     width: u32,
@@ -107,19 +103,9 @@ pub fn encode_with(
     speed: PngSpeed,
 ) -> Result<Vec<u8>, String> {
     check_frame(rgb.len(), width, height, format)?;
-    let expected = rgb.len();
     match format {
         ImageFormat::Png => encode_png(rgb, width, height, ExtendedColorType::Rgb8, speed),
-        ImageFormat::Jpeg { quality } => {
-            let (w, h) = (width as u16, height as u16); // checked above
-            let mut out = Vec::with_capacity(expected / 8 + 1024);
-            let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
-            encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
-            encoder
-                .encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
-                .map_err(|e| format!("cannot encode as jpeg: {e}"))?;
-            Ok(out)
-        }
+        ImageFormat::Jpeg { quality } => crate::jpeg::encode_rgb(rgb, width, height, quality),
     }
 }
 
@@ -177,7 +163,11 @@ pub fn encode_png(
 /// [`PngSpeed::Wire`] to compress the frame (otherwise it is stored).
 pub const WIRE_MIN_SAVING: f64 = 0.10;
 
-/// Whether deflate finds enough in `data` to be worth running over all of it: every eighth
+/// One row in this many is the sample [`PngSpeed::Wire`] compresses to decide (ten rows of
+/// a 576×320 frame: enough for deflate to show what it finds, at 3 % of the frame's cost).
+const WIRE_SAMPLE_STEP: usize = 32;
+
+/// Whether deflate finds enough in `data` to be worth running over all of it: every 32nd
 /// row (Sub filter, fast deflate) must shrink by at least [`WIRE_MIN_SAVING`].
 fn worth_compressing(
     data: &[u8],
@@ -186,12 +176,12 @@ fn worth_compressing(
     color: ExtendedColorType,
 ) -> Result<bool, String> {
     let row = data.len() / height.max(1) as usize;
-    if row == 0 || height < 16 {
+    if row == 0 || (height as usize) < 2 * WIRE_SAMPLE_STEP {
         return Ok(true);
     }
     // Row by row (a byte-wise iterator copy costs as much as the sample's deflate).
-    let mut sample = Vec::with_capacity(row * (height as usize).div_ceil(8));
-    for r in data.chunks_exact(row).step_by(8) {
+    let mut sample = Vec::with_capacity(row * (height as usize).div_ceil(WIRE_SAMPLE_STEP));
+    for r in data.chunks_exact(row).step_by(WIRE_SAMPLE_STEP) {
         sample.extend_from_slice(r);
     }
     let rows = (sample.len() / row) as u32;

@@ -9,6 +9,7 @@ pub mod atomic;
 #[cfg(feature = "http")]
 pub mod http;
 pub mod image;
+pub mod jpeg;
 pub mod progress;
 
 pub use atomic::{FileSet, write_atomic, write_atomic_with};

@@ -20,23 +20,12 @@
 //! lose information).
 
 use crate::frame::{FrameMut, FrameRef};
+use fogline_io::jpeg::{CHROMA_Q, LUMA_Q};
 
-const LUMA_Q: [u16; 64] = [
-    16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
-    14, 17, 22, 29, 51, 87, 80, 62, 18, 22, 37, 56, 68, 109, 103, 77, 24, 35, 55, 64, 81, 104, 113,
-    92, 49, 64, 78, 87, 103, 121, 120, 101, 72, 92, 95, 98, 112, 100, 103, 99,
-];
-const CHROMA_Q: [u16; 64] = [
-    17, 18, 24, 47, 99, 99, 99, 99, 18, 21, 26, 66, 99, 99, 99, 99, 24, 26, 56, 99, 99, 99, 99, 99,
-    47, 66, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99,
-    99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99, 99,
-];
-
-/// The quantisation table of `base` at `quality` (1–100), libjpeg's scaling.
+/// The quantisation table of `base` at `quality` (1–100), libjpeg's scaling (the encoder's
+/// own: [`fogline_io::jpeg::scaled_table`]).
 pub(crate) fn scaled_table(base: &[u16; 64], quality: u32) -> [f32; 64] {
-    let q = quality.clamp(1, 100);
-    let scale = if q < 50 { 5000 / q } else { 200 - 2 * q };
-    base.map(|b| ((u32::from(b) * scale + 50) / 100).clamp(1, 255) as f32)
+    fogline_io::jpeg::scaled_table(base, quality).map(f32::from)
 }
 
 /// An 8-bit plane.

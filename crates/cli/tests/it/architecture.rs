@@ -9,7 +9,10 @@ fn level_table() -> BTreeMap<&'static str, &'static [&'static str]> {
         ("fogline-io", &[][..]),
         ("fogline-embed", &[][..]),
         ("fogline-stats", &["fogline-types"][..]),
-        ("fogline-perturb", &["fogline-types", "fogline-stats"][..]),
+        (
+            "fogline-perturb",
+            &["fogline-types", "fogline-io", "fogline-stats"][..],
+        ),
         (
             "fogline-world",
             &[

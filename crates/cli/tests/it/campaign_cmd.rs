@@ -462,5 +462,5 @@ fn bench_campaign_times_every_remote_path_under_clean_and_noisy_frames() {
         }
     }
     assert!(t.contains("egodriver gRPC, jpeg95"), "{t}");
-    assert!(t.contains("jpeg-encoder, quality 95"), "{t}");
+    assert!(t.contains("fogline's encoder, quality 95"), "{t}");
 }

@@ -656,3 +656,59 @@ fn r20_carla_driver_interface_drives_through_fogline_guard_and_survives_the_driv
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// fogline's JPEG encoder against an independent decoder: Pillow (libjpeg-turbo), in the
+/// peers' Python. World frames at qualities 50 and 95 decode there to the pixels the `image`
+/// crate's decoder (zune-jpeg) gives, within the two decoders' rounding, and close to the
+/// source.
+#[test]
+fn fogline_jpeg_frames_decode_with_pillow_as_with_the_image_crate() {
+    let python = python();
+    let clip = generate_clip(&WorldConfig::default(), 5).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for (k, (cam, quality)) in [(0usize, 95u8), (1, 50), (2, 95)].into_iter().enumerate() {
+        let camera = &clip.cameras[cam];
+        let frame = &camera.frames.last().unwrap().image;
+        let (w, h) = (frame.width(), frame.height());
+        let src = frame.data();
+        let jpeg =
+            fogline_io::encode(src, w, h, fogline_io::ImageFormat::Jpeg { quality }).unwrap();
+        let path = dir.path().join(format!("{k}.jpg"));
+        std::fs::write(&path, &jpeg).unwrap();
+        let o = Command::new(&python)
+            .args([
+                "-c",
+                "import sys; from PIL import Image; \
+                 sys.stdout.buffer.write(Image.open(sys.argv[1]).convert('RGB').tobytes())",
+            ])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let pillow = o.stdout;
+        let zune = image::load_from_memory(&jpeg)
+            .unwrap()
+            .into_rgb8()
+            .into_raw();
+        assert_eq!(pillow.len(), src.len(), "{w}x{h}");
+        let max_diff = pillow
+            .iter()
+            .zip(&zune)
+            .map(|(&a, &b)| a.abs_diff(b))
+            .max()
+            .unwrap();
+        assert!(
+            max_diff <= 3,
+            "q{quality}: Pillow and zune-jpeg differ by {max_diff}"
+        );
+        let mse = src
+            .iter()
+            .zip(&pillow)
+            .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+            .sum::<f64>()
+            / src.len() as f64;
+        let psnr = 10.0 * (255.0f64 * 255.0 / mse.max(1e-9)).log10();
+        let floor = if quality == 95 { 38.0 } else { 30.0 };
+        assert!(psnr > floor, "q{quality}: PSNR {psnr:.1} dB through Pillow");
+    }
+}

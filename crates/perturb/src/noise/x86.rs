@@ -12,7 +12,8 @@
 //!
 //! The tests compare every kernel this CPU can run with the portable one, byte for byte.
 //!
-//! This module is the one place in fogline with `unsafe` code: the calls into the
+//! This module holds most of fogline's `unsafe` code (the others: the JPEG encoder's call into
+//! its AVX2 build, `fogline_io::jpeg`, and the Python bindings' buffer access): the calls into the
 //! `#[target_feature]` functions (sound because [`Simd::detect`] has checked the CPU) and the
 //! unaligned vector loads and stores, each within a slice or array whose length is checked
 //! beside it.

@@ -8,7 +8,7 @@ use fogline_types::clip::{DT_S, Decision, HORIZON, PlannerOutput, Trajectory};
 use hyper::StatusCode;
 use tokio::runtime::Runtime;
 
-use super::types::{CalibrationBody, CameraBody, ErrorBody, FrameBody, PlanBody};
+use super::types::{CalibrationBody, CameraBody, ErrorBody, FrameBody, FrameJson, PlanBody};
 use super::{MAX_BODY_BYTES, PLAN_PATH};
 use crate::{FailureKind, ImageFormat, PlanFailure, PlanRequest, Planner, codec};
 
@@ -168,11 +168,12 @@ fn request_body(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Vec<u8
         let c = &request.input.cameras[i].calib;
         let bytes = codec::encode(f, c.width, c.height, format)
             .map_err(|e| input(format!("{} frame {j}: {e}", c.id)))?;
-        Ok(FrameBody {
+        serde_json::value::to_raw_value(&FrameBody {
             t_s: -DT_S * (n - 1 - j) as f64,
             image_format: format.name().to_string(),
             data: b64.encode(bytes),
         })
+        .map_err(|e| input(format!("cannot write the request: {e}")))
     })
     .into_iter();
     let mut cameras = Vec::with_capacity(request.input.cameras.len());
@@ -181,7 +182,7 @@ fn request_body(request: &PlanRequest<'_>, format: ImageFormat) -> Result<Vec<u8
         let frames = encoded
             .by_ref()
             .take(cam.frames.len())
-            .collect::<Result<Vec<_>, PlanFailure>>()?;
+            .collect::<Result<Vec<FrameJson>, PlanFailure>>()?;
         cameras.push(CameraBody {
             id: c.id.name().to_string(),
             calibration: CalibrationBody {

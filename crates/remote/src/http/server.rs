@@ -320,11 +320,10 @@ fn run(shared: &Shared, body: &[u8]) -> Result<PlannerOutput, Refusal> {
         order.sort_by(|&a, &b| cam.frames[a].t_s.total_cmp(&cam.frames[b].t_s));
         jobs.extend(order.into_iter().map(|j| (i, j)));
     }
-    let bytes = jobs
-        .iter()
-        .map(|&(i, j)| req.cameras[i].frames[j].data.len())
-        .sum();
-    let mut decoded = codec::par_map(&jobs, bytes, |&(i, j)| {
+    // The work is the pixels decoded, not the bytes sent: 16 JPEG frames of 576×320 are
+    // under 1 MB of base64 and 8.8 MB of pixels.
+    let work = usize::try_from(pixels.saturating_mul(3)).unwrap_or(usize::MAX);
+    let mut decoded = codec::par_map(&jobs, work, |&(i, j)| {
         let f = &req.cameras[i].frames[j];
         let calib = &calibs[i];
         let at = format!("cameras[{i}] ({}) frames[{j}]", calib.id);

@@ -3,24 +3,27 @@
 use fogline_types::clip::EgoPose;
 use serde::{Deserialize, Serialize};
 
-/// `POST /v1/plan` request.
+/// `POST /v1/plan` request. The client writes each frame's JSON on the thread that encoded
+/// it (`F` = its raw JSON, [`FrameJson`]), so the body is assembled without scanning a
+/// megabyte of base64 for characters to escape on one thread; the server reads
+/// [`FrameBody`].
 #[derive(Debug, Serialize, Deserialize)]
-pub(crate) struct PlanBody {
+pub(crate) struct PlanBody<F = FrameBody> {
     pub scene_id: String,
     pub seed: u64,
     /// The absolute time of `t0`, µs, when the caller has one; informational.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub t0_us: Option<u64>,
-    pub cameras: Vec<CameraBody>,
+    pub cameras: Vec<CameraBody<F>>,
     pub ego_history: Vec<EgoPose>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
-pub(crate) struct CameraBody {
+pub(crate) struct CameraBody<F = FrameBody> {
     /// A PhysicalAI camera name (`camera_front_wide_120fov`) or its short form.
     pub id: String,
     pub calibration: CalibrationBody,
-    pub frames: Vec<FrameBody>,
+    pub frames: Vec<F>,
 }
 
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
@@ -47,6 +50,9 @@ pub(crate) struct FrameBody {
     /// The encoded image, standard base64 with padding.
     pub data: String,
 }
+
+/// A [`FrameBody`] already written as JSON.
+pub(crate) type FrameJson = Box<serde_json::value::RawValue>;
 
 /// `200` answer of `POST /v1/plan` (what the server writes; the client reads it loosely
 /// to report precise errors).
