@@ -144,9 +144,6 @@ pub fn run(a: &CampaignBench, out: &mut dyn Write) -> Result<()> {
 /// Goals of issue 22 for the overhead per call, ms: PNG, JPEG 95.
 const GOAL_MS: [f64; 2] = [10.0, 20.0];
 
-/// Part (b) under one condition: the frames' encode and decode on one thread, then the same
-/// request answered by a trivial planner in-process, over egodriver gRPC and over HTTP on
-/// loopback, PNG and JPEG 95, `a.runs` runs of `a.calls` calls each.
 /// The jpeg-encoder crate's time to encode `frames` on one thread at `quality`, 4:4:4 (the
 /// median of five rounds, ms), and its bytes.
 fn peer_jpeg(frames: &[(&[u8], u32, u32)], quality: u8) -> Result<(f64, usize)> {
@@ -168,6 +165,9 @@ fn peer_jpeg(frames: &[(&[u8], u32, u32)], quality: u8) -> Result<(f64, usize)> 
     Ok((median(times), bytes))
 }
 
+/// Part (b) under one condition: the frames' encode and decode on one thread, then the same
+/// request answered by a trivial planner in-process, over egodriver gRPC and over HTTP on
+/// loopback, PNG and JPEG 95, `a.runs` runs of `a.calls` calls each.
 fn remote_overhead(
     a: &CampaignBench,
     condition: &str,
