@@ -98,6 +98,7 @@ const AAN_SCALE: [f64; 8] = [
 ];
 
 /// A Huffman table as codes per symbol: `code[s]` in the low `len[s]` bits.
+#[derive(Clone)]
 struct Codes {
     code: [u16; 256],
     len: [u8; 256],
@@ -286,6 +287,7 @@ fn magnitude(v: i32) -> (u32, u32) {
 }
 
 /// One component's tables and DC predictor.
+#[derive(Clone)]
 struct Component {
     mult: [f32; 64],
     dc: Codes,
@@ -294,6 +296,17 @@ struct Component {
 }
 
 impl Component {
+    /// A component quantised by `table` (natural order) and coded by the Huffman tables
+    /// `dc` and `ac`, its DC predictor at 0.
+    fn new(table: &[u16; 64], dc: &([u8; 16], &[u8]), ac: &([u8; 16], &[u8])) -> Self {
+        Component {
+            mult: multipliers(table),
+            dc: Codes::new(dc),
+            ac: Codes::new(ac),
+            pred: 0,
+        }
+    }
+
     /// Transforms, quantises and codes one level-shifted 8×8 block.
     #[inline(always)]
     fn block(&mut self, d: &mut [[f32; 8]; 8], bits: &mut BitWriter) {
@@ -427,25 +440,11 @@ fn encode_rgb_on(
         acc: 0,
         free: 64,
     };
+    let chroma = Component::new(&chroma, &DC_CHROMA, &AC_CHROMA);
     let mut comps = [
-        Component {
-            mult: multipliers(&luma),
-            dc: Codes::new(&DC_LUMA),
-            ac: Codes::new(&AC_LUMA),
-            pred: 0,
-        },
-        Component {
-            mult: multipliers(&chroma),
-            dc: Codes::new(&DC_CHROMA),
-            ac: Codes::new(&AC_CHROMA),
-            pred: 0,
-        },
-        Component {
-            mult: multipliers(&chroma),
-            dc: Codes::new(&DC_CHROMA),
-            ac: Codes::new(&AC_CHROMA),
-            pred: 0,
-        },
+        Component::new(&luma, &DC_LUMA, &AC_LUMA),
+        chroma.clone(),
+        chroma,
     ];
     scan(rgb, w, h, &mut comps, &mut bits, avx2);
     let mut out = bits.finish();
