@@ -21,19 +21,31 @@ import sys
 from collections import defaultdict
 
 
+def interval(stat, items):
+    """The 2.5 % and 97.5 % points of `stat` over 10,000 resamples of `items` (fixed seed)."""
+    rng = random.Random(7)
+    boot = sorted(
+        stat([items[rng.randrange(len(items))] for _ in items]) for _ in range(10_000)
+    )
+    return boot[250], boot[9749]
+
+
 def main(paths):
+    # config -> (seed, route) -> (collisions, km completed, driving score)
     runs = defaultdict(dict)
-    scores = defaultdict(dict)
     for path in paths:
-        with open(path, encoding="utf-8") as f:
+        try:
+            f = open(path, encoding="utf-8")
+        except OSError as e:
+            sys.exit(f"{path}: cannot read the run records ({e.strerror})")
+        with f:
             for n, line in enumerate(f, 1):
                 try:
                     r = json.loads(line)
                     km = r["score"]["route_completion"] / 100 * r["length_m"] / 1000
                     hits = sum(1 for e in r["events"] if e["kind"].startswith("collision"))
-                    ds = r["score"]["driving_score"]
-                    runs[r["config"]][(r["seed"], r["route"])] = (hits, km)
-                    scores[r["config"]][(r["seed"], r["route"])] = float(ds)
+                    ds = float(r["score"]["driving_score"])
+                    runs[r["config"]][(r["seed"], r["route"])] = (hits, km, ds)
                 except (ValueError, KeyError, TypeError) as e:
                     sys.exit(f"{path}: line {n}: not a run record ({e})")
     for deficit in ("traffic_light", "stop_sign", "pedestrian", "bicycle"):
@@ -52,24 +64,15 @@ def main(paths):
             print(f"{deficit} seed {seed}: collisions {sum(a[k][0] for k in keys)} -> "
                   f"{sum(b[k][0] for k in keys)}")
         ra, rb = rates(pairs)
-        rng = random.Random(7)
-        boot = sorted(
-            (lambda r: r[1] - r[0])(rates([pairs[rng.randrange(len(pairs))] for _ in pairs]))
-            for _ in range(10_000)
-        )
+        lo, hi = interval(lambda keys: (lambda r: r[1] - r[0])(rates(keys)), pairs)
         print(f"{deficit}: {len(pairs)} pairs, {ra:.3f} -> {rb:.3f} per km, difference "
-              f"{rb - ra:+.3f} [{boot[250]:+.3f}, {boot[9749]:+.3f}]")
-        clear = scores.get("no_deficit", {})
-        cost = [clear[k] - scores[deficit + "/no_rco"][k] for k in pairs if k in clear]
+              f"{rb - ra:+.3f} [{lo:+.3f}, {hi:+.3f}]")
+        clear = runs.get("no_deficit", {})
+        cost = [clear[k][2] - a[k][2] for k in pairs if k in clear]
         if cost:
-            mean = sum(cost) / len(cost)
-            rng = random.Random(7)
-            boot = sorted(
-                sum(cost[rng.randrange(len(cost))] for _ in cost) / len(cost)
-                for _ in range(10_000)
-            )
+            lo, hi = interval(lambda c: sum(c) / len(c), cost)
             print(f"{deficit}: cost to the baseline (DS no deficit - no RCO), {len(cost)} "
-                  f"pairs: {mean:+.2f} [{boot[250]:+.2f}, {boot[9749]:+.2f}]")
+                  f"pairs: {sum(cost) / len(cost):+.2f} [{lo:+.2f}, {hi:+.2f}]")
 
 
 if __name__ == "__main__":
