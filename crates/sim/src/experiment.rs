@@ -311,6 +311,11 @@ pub struct ConfigSummary {
     pub llm_ms_per_call: Option<f64>,
     /// RCO fallbacks, all runs.
     pub fallbacks: u64,
+    /// Times the baseline's unstick rule fired (it stood 55 s and was moved on), all runs:
+    /// where a deficit costs time rather than score (a masked sign read as a red light that
+    /// never turns green).
+    #[serde(default)]
+    pub unstick: u64,
     /// Wall-clock time of its runs, s (not deterministic).
     pub wall_s: f64,
 }
@@ -657,6 +662,7 @@ impl Summary {
                     .filter_map(|r| r.rco.as_ref())
                     .map(|s| s.fallbacks_total())
                     .sum(),
+                unstick: rs.iter().map(|r| u64::from(r.unstick)).sum(),
                 wall_s: rs.iter().map(|r| r.wall_s).sum(),
             });
         }

@@ -524,7 +524,7 @@ pub fn markdown(results: &Results) -> String {
         );
     }
     out.push_str("\n## Runs\n\n");
-    out.push_str("| Configuration | Runs | Deficit present | RCO drove | LLM calls | ms/call | Fallbacks | Terminations | Infractions per km |\n|---|---|---|---|---|---|---|---|---|\n");
+    out.push_str("| Configuration | Runs | Deficit present | RCO drove | LLM calls | ms/call | Fallbacks | Unstick (per run) | Terminations | Infractions per km |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for c in &s.configs {
         let inf: Vec<String> = c
             .infractions_per_km
@@ -534,7 +534,7 @@ pub fn markdown(results: &Results) -> String {
             .collect();
         let _ = writeln!(
             out,
-            "| {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {} | {} |",
+            "| {} | {} | {:.1} % | {:.1} % | {} | {} | {} | {} ({:.2}) | {} | {} |",
             c.config,
             c.unlimited.runs,
             100.0 * c.deficit_share,
@@ -542,6 +542,8 @@ pub fn markdown(results: &Results) -> String {
             c.llm_calls,
             c.llm_ms_per_call.map_or("-".into(), |m| format!("{m:.3}")),
             c.fallbacks,
+            c.unstick,
+            c.unstick as f64 / c.unlimited.runs.max(1) as f64,
             terminations(c),
             if inf.is_empty() {
                 "-".into()

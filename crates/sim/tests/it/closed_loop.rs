@@ -112,6 +112,23 @@ fn a_traffic_light_deficit_changes_the_red_light_behaviour_and_rco_changes_it_ag
     assert_eq!(lines.lines().count(), 6);
     let md = std::fs::read_to_string(&w.tables).unwrap();
     assert!(md.contains("Table 1") && md.contains("Table 2") && md.contains("Red-light"));
+    // Each configuration's unstick firings are its records' own, and the runs table prints
+    // them with the count per run.
+    for c in &s.configs {
+        let n: u64 = results
+            .records
+            .iter()
+            .filter(|r| r.config == c.config)
+            .map(|r| u64::from(r.unstick))
+            .sum();
+        assert_eq!(c.unstick, n, "{}", c.config);
+        let cell = format!("| {n} ({:.2}) |", n as f64 / c.unlimited.runs as f64);
+        assert!(
+            md.lines()
+                .any(|l| l.starts_with(&format!("| {} |", c.config)) && l.contains(&cell)),
+            "{cell}"
+        );
+    }
     let cl: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&w.closed_loop).unwrap()).unwrap();
     assert_eq!(cl["configurations"].as_array().unwrap().len(), 3);
