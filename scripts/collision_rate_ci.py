@@ -9,7 +9,9 @@ seed and pooled. `fogline sim run` prints the paired ΔDS interval itself; this 
 interval of the collision-rate difference, and what the deficit costs the baseline: the
 mean driving score without a deficit minus the mean without the override under it, paired
 by seed and route, with its bootstrap interval (an override that only ever slows the car
-wins back at most this, plus the baseline's own failures it prevents while in control).
+wins back at most this, plus the baseline's own failures it prevents while in control),
+and the collision rate with the override against the baseline's without any deficit (the
+same routes, seeds and bootstrap).
 Standard library only.
 
     python3 scripts/collision_rate_ci.py DIR/records.jsonl [MORE/records.jsonl ...]
@@ -54,7 +56,7 @@ def main(paths):
             continue
         pairs = sorted(set(a) & set(b))
 
-        def rates(keys):
+        def rates(keys, a=a, b=b):
             ra = sum(a[k][0] for k in keys) / max(sum(a[k][1] for k in keys), 1e-9)
             rb = sum(b[k][0] for k in keys) / max(sum(b[k][1] for k in keys), 1e-9)
             return ra, rb
@@ -73,6 +75,12 @@ def main(paths):
             lo, hi = interval(lambda c: sum(c) / len(c), cost)
             print(f"{deficit}: cost to the baseline (DS no deficit - no RCO), {len(cost)} "
                   f"pairs: {sum(cost) / len(cost):+.2f} [{lo:+.2f}, {hi:+.2f}]")
+        both = [k for k in pairs if k in clear]
+        if both:
+            rc, rb = rates(both, a=clear)
+            lo, hi = interval(lambda keys: (lambda r: r[1] - r[0])(rates(keys, a=clear)), both)
+            print(f"{deficit}: RCO against no deficit, {len(both)} pairs: {rc:.3f} -> "
+                  f"{rb:.3f} per km, difference {rb - rc:+.3f} [{lo:+.3f}, {hi:+.3f}]")
 
 
 if __name__ == "__main__":
