@@ -311,9 +311,9 @@ pub struct ConfigSummary {
     pub llm_ms_per_call: Option<f64>,
     /// RCO fallbacks, all runs.
     pub fallbacks: u64,
-    /// Times the baseline's unstick rule fired (it stood 55 s and was moved on), all runs:
-    /// where a deficit costs time rather than score (a masked sign read as a red light that
-    /// never turns green).
+    /// Times the baseline's unstick rule fired (it stood `unstick_after_s`, 55 s by default,
+    /// and was moved on), all runs: where a deficit costs time rather than score (a masked
+    /// sign read as a red light that never turns green).
     #[serde(default)]
     pub unstick: u64,
     /// Wall-clock time of its runs, s (not deterministic).
