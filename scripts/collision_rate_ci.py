@@ -32,6 +32,17 @@ def interval(stat, items):
     return boot[250], boot[9749]
 
 
+def rate(runs, keys):
+    """Collisions per km completed over the runs `keys` of one configuration."""
+    return sum(runs[k][0] for k in keys) / max(sum(runs[k][1] for k in keys), 1e-9)
+
+
+def rate_difference(base, other, keys):
+    """Both pooled rates over `keys` and the interval of their difference (other - base)."""
+    lo, hi = interval(lambda ks: rate(other, ks) - rate(base, ks), keys)
+    return rate(base, keys), rate(other, keys), lo, hi
+
+
 def main(paths):
     # config -> (seed, route) -> (collisions, km completed, driving score)
     runs = defaultdict(dict)
@@ -55,33 +66,23 @@ def main(paths):
         if not a or not b:
             continue
         pairs = sorted(set(a) & set(b))
-
-        def rates(keys, a=a, b=b):
-            ra = sum(a[k][0] for k in keys) / max(sum(a[k][1] for k in keys), 1e-9)
-            rb = sum(b[k][0] for k in keys) / max(sum(b[k][1] for k in keys), 1e-9)
-            return ra, rb
-
         for seed in sorted({k[0] for k in pairs}):
             keys = [k for k in pairs if k[0] == seed]
             print(f"{deficit} seed {seed}: collisions {sum(a[k][0] for k in keys)} -> "
                   f"{sum(b[k][0] for k in keys)}")
-        ra, rb = rates(pairs)
-        lo, hi = interval(lambda keys: (lambda r: r[1] - r[0])(rates(keys)), pairs)
+        ra, rb, lo, hi = rate_difference(a, b, pairs)
         print(f"{deficit}: {len(pairs)} pairs, {ra:.3f} -> {rb:.3f} per km, difference "
               f"{rb - ra:+.3f} [{lo:+.3f}, {hi:+.3f}]")
         clear = runs.get("no_deficit", {})
-        cost = [clear[k][2] - a[k][2] for k in pairs if k in clear]
-        if cost:
+        both = [k for k in pairs if k in clear]
+        if both:
+            cost = [clear[k][2] - a[k][2] for k in both]
             lo, hi = interval(lambda c: sum(c) / len(c), cost)
             print(f"{deficit}: cost to the baseline (DS no deficit - no RCO), {len(cost)} "
                   f"pairs: {sum(cost) / len(cost):+.2f} [{lo:+.2f}, {hi:+.2f}]")
-        both = [k for k in pairs if k in clear]
-        if both:
-            rc, rb = rates(both, a=clear)
-            lo, hi = interval(lambda keys: (lambda r: r[1] - r[0])(rates(keys, a=clear)), both)
+            rc, rb, lo, hi = rate_difference(clear, b, both)
             print(f"{deficit}: RCO against no deficit, {len(both)} pairs: {rc:.3f} -> "
                   f"{rb:.3f} per km, difference {rb - rc:+.3f} [{lo:+.3f}, {hi:+.3f}]")
-
 
 if __name__ == "__main__":
     if len(sys.argv) < 2:
